@@ -1,0 +1,382 @@
+//! Meshes in and out: the watertight boundary of built-in solids, STL export in millimetres,
+//! and STL/OBJ import (a folder of convex parts, or one non-convex mesh decomposed by V-HACD).
+
+use super::planar::{P2, Region, triangulate};
+use super::solid::{BoundaryMesh, ConvexPiece, P3, Solid};
+use crate::error::{Error, Result};
+use parry3d::math::Vector as V3f;
+use parry3d::query::PointQuery;
+use parry3d::shape::TriMesh;
+use parry3d::transformation::vhacd::{VHACD, VHACDParameters};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Builds a watertight mesh from side bands and planar caps that share their ring vertices.
+#[derive(Default)]
+pub struct MeshBuilder {
+    index: HashMap<[u64; 3], u32>,
+    mesh: BoundaryMesh,
+}
+
+impl MeshBuilder {
+    fn vertex(&mut self, p: P2, z: f64) -> u32 {
+        let key = [p.x.to_bits(), p.y.to_bits(), z.to_bits()];
+        let mesh = &mut self.mesh;
+        *self.index.entry(key).or_insert_with(|| {
+            mesh.vertices.push(P3::new(p.x, p.y, z));
+            (mesh.vertices.len() - 1) as u32
+        })
+    }
+
+    /// The ruled band between `low` (at `z_low`) and `high` (at `z_high`), two rings with the same
+    /// number of vertices and the material on the left of their edges; faces point away from it.
+    pub fn side_band(&mut self, low: &[P2], z_low: f64, high: &[P2], z_high: f64) {
+        let n = low.len();
+        for i in 0..n {
+            let j = (i + 1) % n;
+            let (a0, b0) = (self.vertex(low[i], z_low), self.vertex(low[j], z_low));
+            let (a1, b1) = (self.vertex(high[i], z_high), self.vertex(high[j], z_high));
+            self.mesh.triangles.push([a0, b0, b1]);
+            self.mesh.triangles.push([a0, b1, a1]);
+        }
+    }
+
+    /// A planar cap over a region at height `z`, facing up (+z) or down.
+    pub fn cap(&mut self, region: &Region, z: f64, up: bool) {
+        for [a, b, c] in triangulate(region) {
+            let (ia, ib, ic) = (self.vertex(a, z), self.vertex(b, z), self.vertex(c, z));
+            self.mesh
+                .triangles
+                .push(if up { [ia, ib, ic] } else { [ia, ic, ib] });
+        }
+    }
+
+    pub fn finish(self) -> BoundaryMesh {
+        self.mesh
+    }
+}
+
+impl BoundaryMesh {
+    /// True when every edge is shared by exactly two triangles with opposite directions.
+    pub fn is_watertight(&self) -> bool {
+        let mut count: HashMap<(u32, u32), i32> = HashMap::new();
+        for t in &self.triangles {
+            for k in 0..3 {
+                *count.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+            }
+        }
+        count
+            .iter()
+            .all(|(&(a, b), &c)| c == 1 && count.get(&(b, a)) == Some(&1))
+    }
+
+    /// Enclosed volume (divergence theorem), m^3; positive for outward-facing triangles.
+    pub fn volume(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize].coords);
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum()
+    }
+
+    /// Writes a binary STL in millimetres.
+    pub fn write_stl_mm(&self, path: &Path) -> Result<()> {
+        let io = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
+        let tris: Vec<stl_io::Triangle> = self
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize].coords * 1e3);
+                let n = (b - a).cross(&(c - a)).normalize();
+                let v = |p: nalgebra::Vector3<f64>| stl_io::Vertex::new([p.x as f32, p.y as f32, p.z as f32]);
+                stl_io::Triangle {
+                    normal: stl_io::Normal::new([n.x as f32, n.y as f32, n.z as f32]),
+                    vertices: [v(a), v(b), v(c)],
+                }
+            })
+            .collect();
+        let mut file = std::fs::File::create(path).map_err(io)?;
+        stl_io::write_stl(&mut file, tris.iter()).map_err(io)
+    }
+}
+
+/// Length unit of a mesh file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MeshUnits {
+    Mm,
+    M,
+}
+
+impl MeshUnits {
+    fn scale(self) -> f64 {
+        match self {
+            MeshUnits::Mm => 1e-3,
+            MeshUnits::M => 1.0,
+        }
+    }
+}
+
+/// A triangle mesh read from a file, metres.
+pub struct TriangleSoup {
+    pub vertices: Vec<P3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Reads an STL or OBJ file (by extension) into metres.
+pub fn read_mesh(path: &Path, units: MeshUnits) -> Result<TriangleSoup> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let (raw, triangles): (Vec<[f32; 3]>, Vec<[u32; 3]>) = match ext.as_deref() {
+        Some("stl") => {
+            let mut file = std::fs::File::open(path)
+                .map_err(|e| Error::file(path, format!("cannot open: {e}")))?;
+            let mesh = stl_io::read_stl(&mut file)
+                .map_err(|e| Error::file(path, format!("not a valid STL file: {e}")))?;
+            (
+                mesh.vertices.iter().map(|v| v.0).collect(),
+                mesh.faces
+                    .iter()
+                    .map(|f| f.vertices.map(|i| i as u32))
+                    .collect(),
+            )
+        }
+        Some("obj") => {
+            let options = tobj::LoadOptions {
+                triangulate: true,
+                single_index: true,
+                ..Default::default()
+            };
+            let (models, _) = tobj::load_obj(path, &options)
+                .map_err(|e| Error::file(path, format!("not a valid OBJ file: {e}")))?;
+            let mut raw = Vec::new();
+            let mut tris = Vec::new();
+            for m in models {
+                let base = raw.len() as u32;
+                raw.extend(m.mesh.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+                tris.extend(
+                    m.mesh
+                        .indices
+                        .chunks_exact(3)
+                        .map(|c| [base + c[0], base + c[1], base + c[2]]),
+                );
+            }
+            (raw, tris)
+        }
+        _ => {
+            return Err(Error::file(
+                path,
+                "unknown mesh format: expected a .stl or .obj file",
+            ));
+        }
+    };
+    if triangles.is_empty() {
+        return Err(Error::file(path, "the mesh has no triangles"));
+    }
+    if let Some(bad) = raw.iter().find(|v| v.iter().any(|c| !c.is_finite())) {
+        return Err(Error::file(path, format!("vertex {bad:?} is not finite")));
+    }
+    if triangles
+        .iter()
+        .flatten()
+        .any(|&i| i as usize >= raw.len())
+    {
+        return Err(Error::file(path, "a triangle refers to a missing vertex"));
+    }
+    let s = units.scale();
+    Ok(TriangleSoup {
+        vertices: raw
+            .iter()
+            .map(|v| P3::new(v[0] as f64 * s, v[1] as f64 * s, v[2] as f64 * s))
+            .collect(),
+        triangles,
+    })
+}
+
+fn trimesh(soup: &TriangleSoup, path: &Path) -> Result<TriMesh> {
+    let v: Vec<V3f> = soup
+        .vertices
+        .iter()
+        .map(|p| V3f::new(p.x as f32, p.y as f32, p.z as f32))
+        .collect();
+    TriMesh::new(v, soup.triangles.clone())
+        .map_err(|e| Error::file(path, format!("not a usable triangle mesh: {e}")))
+}
+
+/// Largest distance from any of `points` to the surface of `surface`, metres.
+fn max_distance_to_surface(points: impl Iterator<Item = P3>, surface: &TriMesh) -> f64 {
+    points
+        .map(|p| {
+            surface.distance_to_local_point(V3f::new(p.x as f32, p.y as f32, p.z as f32), false)
+                as f64
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Points on a convex piece's surface for deviation checks: its vertices and the midpoints of
+/// its vertex pairs that lie on the hull surface are approximated by face centroids.
+fn piece_surface_samples(piece: &ConvexPiece) -> Vec<P3> {
+    let mut out = piece.vertices.clone();
+    for n in &piece.face_normals {
+        let support = piece
+            .vertices
+            .iter()
+            .map(|p| p.coords.dot(n))
+            .fold(f64::MIN, f64::max);
+        let on_face: Vec<&P3> = piece
+            .vertices
+            .iter()
+            .filter(|p| (p.coords.dot(n) - support).abs() < 1e-7)
+            .collect();
+        if !on_face.is_empty() {
+            let c = on_face.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>()
+                / on_face.len() as f64;
+            out.push(P3::from(c));
+        }
+    }
+    out
+}
+
+/// A solid loaded from meshes, with what was measured on the way.
+pub struct LoadedSolid {
+    pub solid: Solid,
+    /// Largest deviation between the collision pieces and the input surface, metres.
+    pub max_deviation_m: f64,
+    pub warnings: Vec<String>,
+}
+
+/// Loads a solid from a folder of convex parts (one STL/OBJ file each, the usual CoACD or V-HACD
+/// output) or from one non-convex STL/OBJ file, which is decomposed with V-HACD. `half_gap_m` is
+/// half the stated clearance: a deviation above it draws a warning.
+pub fn load_solid(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<LoadedSolid> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    if meta.is_dir() {
+        load_convex_parts(path, units, half_gap_m)
+    } else {
+        load_and_decompose(path, units, half_gap_m)
+    }
+}
+
+fn mesh_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let entries =
+        std::fs::read_dir(dir).map_err(|e| Error::file(dir, format!("cannot list: {e}")))?;
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| e.eq_ignore_ascii_case("stl") || e.eq_ignore_ascii_case("obj"))
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(Error::file(dir, "the folder holds no .stl or .obj file"));
+    }
+    Ok(files)
+}
+
+fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<LoadedSolid> {
+    let mut pieces = Vec::new();
+    let mut warnings = Vec::new();
+    let mut max_dev: f64 = 0.0;
+    for file in mesh_files(dir)? {
+        let soup = read_mesh(&file, units)?;
+        let piece = ConvexPiece::from_points(&soup.vertices)
+            .ok_or_else(|| Error::file(&file, "the part is flat or degenerate: it has no volume"))?;
+        let surface = trimesh(&soup, &file)?;
+        let dev = max_distance_to_surface(piece_surface_samples(&piece).into_iter(), &surface);
+        if dev > half_gap_m.min(1e-4) {
+            warnings.push(format!(
+                "{}: the part is not convex: its convex hull stands up to {:.3} mm off its surface{}",
+                file.display(),
+                dev * 1e3,
+                if dev > half_gap_m { ", more than half the clearance" } else { "" }
+            ));
+        }
+        max_dev = max_dev.max(dev);
+        pieces.push(piece);
+    }
+    Ok(LoadedSolid {
+        solid: Solid {
+            pieces,
+            boundary: None,
+        },
+        max_deviation_m: max_dev,
+        warnings,
+    })
+}
+
+fn load_and_decompose(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<LoadedSolid> {
+    let soup = read_mesh(path, units)?;
+    let surface = trimesh(&soup, path)?;
+    let v: Vec<V3f> = surface.vertices().to_vec();
+    let params = VHACDParameters {
+        resolution: 64,
+        concavity: 0.005,
+        ..Default::default()
+    };
+    let decomposition = VHACD::decompose(&params, &v, surface.indices(), true);
+    let pieces: Vec<ConvexPiece> = decomposition
+        .compute_exact_convex_hulls(&v, surface.indices())
+        .into_iter()
+        .filter_map(|(pts, _)| {
+            let p: Vec<P3> = pts
+                .iter()
+                .map(|q| P3::new(q.x as f64, q.y as f64, q.z as f64))
+                .collect();
+            ConvexPiece::from_points(&p)
+        })
+        .collect();
+    if pieces.is_empty() {
+        return Err(Error::file(path, "the convex decomposition produced no part"));
+    }
+    let outward = max_distance_to_surface(pieces.iter().flat_map(piece_surface_samples), &surface);
+    let inward = soup
+        .vertices
+        .iter()
+        .map(|p| {
+            pieces
+                .iter()
+                .map(|piece| distance_outside(piece, p))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max);
+    let dev = outward.max(inward);
+    let mut warnings = Vec::new();
+    if dev > half_gap_m {
+        warnings.push(format!(
+            "{}: the convex decomposition deviates up to {:.3} mm from the surface, more than half the clearance ({:.3} mm); supply convex parts from CoACD or V-HACD instead",
+            path.display(),
+            dev * 1e3,
+            half_gap_m * 1e3
+        ));
+    }
+    Ok(LoadedSolid {
+        solid: Solid {
+            pieces,
+            boundary: None,
+        },
+        max_deviation_m: dev,
+        warnings,
+    })
+}
+
+/// Distance of a point outside a convex piece (0 inside), by its face planes (a lower bound that
+/// is exact in the face regions).
+fn distance_outside(piece: &ConvexPiece, p: &P3) -> f64 {
+    piece
+        .face_normals
+        .iter()
+        .map(|n| {
+            let support = piece
+                .vertices
+                .iter()
+                .map(|v| v.coords.dot(n))
+                .fold(f64::MIN, f64::max);
+            p.coords.dot(n) - support
+        })
+        .fold(0.0, f64::max)
+}

@@ -1,0 +1,298 @@
+//! Peg and hole geometry: the five built-in pairs (exact convex decompositions with chamfers),
+//! meshes in and out, and the clearance convention.
+//!
+//! Frames: the peg frame has its origin at the centre of the peg tip, z up along the peg; the hole
+//! frame has its origin at the centre of the hole mouth, z out of the hole. Clearance follows ISO
+//! fits: hole size minus peg size (diametral), so the cavity is the peg profile offset by c/2.
+
+pub mod mesh;
+pub mod planar;
+pub mod profile;
+pub mod solid;
+
+use crate::error::{Error, Result};
+use planar::{P2, Region, difference, offset_left, rect, union};
+pub use profile::Builtin;
+use solid::{ConvexPiece, Solid, ZPlane, prisms};
+
+/// Length of the peg's engagement part (tip to body), metres.
+pub const PIN_LENGTH_M: f64 = 32e-3;
+/// Depth of the blind cavity, mouth to floor, metres.
+pub const CAVITY_DEPTH_M: f64 = 30e-3;
+/// Side of the square hole block, metres.
+pub const BLOCK_SIZE_M: f64 = 70e-3;
+/// Thickness of the block under the cavity floor, metres.
+pub const FLOOR_THICKNESS_M: f64 = 10e-3;
+/// Height of the peg body (the flange that mounts on the robot), metres.
+pub const BODY_HEIGHT_M: f64 = 10e-3;
+/// Side of the square peg body, metres.
+pub const BODY_SIZE_M: f64 = 36e-3;
+/// 45-degree chamfer on the peg tip, metres.
+pub const PEG_TIP_CHAMFER_M: f64 = 0.3e-3;
+/// 45-degree chamfer on the hole mouth, metres.
+pub const HOLE_ENTRY_CHAMFER_M: f64 = 0.3e-3;
+/// Smallest and largest clearance the built-ins are made for, metres.
+pub const CLEARANCE_RANGE_M: (f64, f64) = (0.0, 5e-3);
+
+/// A peg and its hole, ready for simulation.
+#[derive(Clone, Debug)]
+pub struct PartPair {
+    pub name: String,
+    /// Diametral clearance (hole size minus peg size), metres. For meshes, the value the user
+    /// states; the meshes themselves decide the real gap.
+    pub clearance_m: f64,
+    /// Largest distance between a polygonised round edge and the true curve, metres.
+    pub chord_error_m: f64,
+    /// The peg in the peg frame.
+    pub peg: Solid,
+    /// The hole block in the hole frame.
+    pub hole: Solid,
+    /// Depth of the cavity floor below the mouth, metres (tip z at full insertion is minus this).
+    pub cavity_depth_m: f64,
+    /// Peg cross-section rings (material on the left), metres; empty for meshes.
+    pub peg_rings: Vec<Vec<P2>>,
+    /// Cavity rings at the cavity walls (material on the left), metres; empty for meshes.
+    pub cavity_rings: Vec<Vec<P2>>,
+}
+
+/// Checks a clearance value (metres) against the supported range.
+pub fn check_clearance(clearance_m: f64) -> Result<()> {
+    let (lo, hi) = CLEARANCE_RANGE_M;
+    if !(clearance_m > lo && clearance_m <= hi) {
+        return Err(Error::Input(format!(
+            "clearance {} mm is out of range: expected more than {} mm and at most {} mm",
+            clearance_m * 1e3,
+            lo * 1e3,
+            hi * 1e3
+        )));
+    }
+    Ok(())
+}
+
+/// Looks a built-in up by name, with an error that lists the known names.
+pub fn builtin_by_name(name: &str) -> Result<Builtin> {
+    Builtin::from_name(name).ok_or_else(|| {
+        let known: Vec<&str> = Builtin::ALL.iter().map(|b| b.name()).collect();
+        Error::Input(format!(
+            "unknown geometry '{name}': expected one of {}",
+            known.join(", ")
+        ))
+    })
+}
+
+/// The chord tolerance for a clearance: 1/20 of the gap on each side.
+pub fn chord_tolerance(clearance_m: f64) -> f64 {
+    clearance_m / 2.0 / 20.0
+}
+
+/// Builds a built-in pair at a clearance (metres).
+pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
+    check_clearance(clearance_m)?;
+    let tol = chord_tolerance(clearance_m);
+    let half_gap = clearance_m / 2.0;
+    let d_max = half_gap + HOLE_ENTRY_CHAMFER_M;
+    let peg_profile = union(&builtin.pieces(0.0, tol, d_max));
+    let cavity = union(&builtin.pieces(half_gap, tol, d_max));
+    let peg = build_peg(&peg_profile).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
+    let (hole, cavity_rings) =
+        build_hole(&cavity).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
+    Ok(PartPair {
+        name: builtin.name().to_string(),
+        clearance_m,
+        chord_error_m: tol,
+        peg,
+        hole,
+        cavity_depth_m: CAVITY_DEPTH_M,
+        peg_rings: peg_profile.iter().flat_map(|r| r.rings().cloned()).collect(),
+        cavity_rings,
+    })
+}
+
+/// The bevel skirt along some rings of a region: quads from each edge to its mitred offset into
+/// the material, and what is left of the region inside them (the core).
+struct Skirt {
+    /// (quad footprint, a point on the edge, unit normal into the material).
+    wedges: Vec<(Vec<P2>, P2, nalgebra::Vector2<f64>)>,
+    /// Each chamfered ring offset by the chamfer width, vertex for vertex.
+    offset_rings: Vec<Vec<P2>>,
+    core: Vec<Region>,
+}
+
+fn skirt(material: &[Region], rings: &[Vec<P2>], width: f64) -> std::result::Result<Skirt, String> {
+    let mut wedges = Vec::new();
+    let mut offset_rings = Vec::new();
+    for ring in rings {
+        let off = offset_left(ring, width).ok_or_else(|| {
+            format!(
+                "a {} mm chamfer collapses an edge of the profile; use a smaller chamfer",
+                width * 1e3
+            )
+        })?;
+        let n = ring.len();
+        for i in 0..n {
+            let j = (i + 1) % n;
+            let quad = vec![ring[i], ring[j], off[j], off[i]];
+            let dir = (ring[j] - ring[i]).normalize();
+            wedges.push((quad, ring[i], nalgebra::Vector2::new(-dir.y, dir.x)));
+        }
+        offset_rings.push(off);
+    }
+    let quads: Vec<Vec<P2>> = wedges.iter().map(|w| w.0.clone()).collect();
+    Ok(Skirt {
+        core: difference(material, &quads),
+        wedges,
+        offset_rings,
+    })
+}
+
+/// The peg: chamfered tip band, the pin(s), and the body block on top.
+fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
+    let ch = PEG_TIP_CHAMFER_M;
+    let rings: Vec<Vec<P2>> = profile.iter().flat_map(|r| r.rings().cloned()).collect();
+    let sk = skirt(profile, &rings, ch)?;
+    let mut pieces = prisms(&sk.core, ZPlane::flat(0.0), ZPlane::flat(ch));
+    for (quad, v, n) in &sk.wedges {
+        // Bottom face rises from z = 0 at the offset line to z = ch at the edge.
+        let lower = ZPlane {
+            a: -n.x,
+            b: -n.y,
+            c: ch + n.x * v.x + n.y * v.y,
+        };
+        pieces.push(ConvexPiece::slab(quad, lower, ZPlane::flat(ch)));
+    }
+    pieces.extend(prisms(profile, ZPlane::flat(ch), ZPlane::flat(PIN_LENGTH_M)));
+    let half = BODY_SIZE_M / 2.0;
+    let body = rect(-half, -half, half, half);
+    let top = PIN_LENGTH_M + BODY_HEIGHT_M;
+    pieces.push(ConvexPiece::slab(
+        &body,
+        ZPlane::flat(PIN_LENGTH_M),
+        ZPlane::flat(top),
+    ));
+
+    let mut m = mesh::MeshBuilder::default();
+    for (ring, off) in rings.iter().zip(&sk.offset_rings) {
+        m.side_band(off, 0.0, ring, ch);
+        m.side_band(ring, ch, ring, PIN_LENGTH_M);
+    }
+    let mut k = 0;
+    for region in profile {
+        let n_rings = 1 + region.holes.len();
+        let tip = Region {
+            outer: sk.offset_rings[k].clone(),
+            holes: sk.offset_rings[k + 1..k + n_rings].to_vec(),
+        };
+        m.cap(&tip, 0.0, false);
+        k += n_rings;
+    }
+    let body_bottom = Region {
+        outer: body.clone(),
+        holes: profile
+            .iter()
+            .map(|r| r.outer.iter().rev().cloned().collect())
+            .collect(),
+    };
+    m.cap(&body_bottom, PIN_LENGTH_M, false);
+    m.side_band(&body, PIN_LENGTH_M, &body, top);
+    m.cap(
+        &Region {
+            outer: body,
+            holes: vec![],
+        },
+        top,
+        true,
+    );
+    Ok(Solid {
+        pieces,
+        boundary: Some(m.finish()),
+    })
+}
+
+/// The hole block: walls around the cavity, a chamfered band at the mouth, and the floor slab.
+/// Returns the solid and the cavity rings (material on the left).
+fn build_hole(cavity: &[Region]) -> std::result::Result<(Solid, Vec<Vec<P2>>), String> {
+    let ch = HOLE_ENTRY_CHAMFER_M;
+    let half = BLOCK_SIZE_M / 2.0;
+    let square = rect(-half, -half, half, half);
+    let block = Region {
+        outer: square.clone(),
+        holes: vec![],
+    };
+    let cavity_rings: Vec<Vec<P2>> = cavity.iter().map(|r| r.outer.clone()).collect();
+    let material = difference(std::slice::from_ref(&block), &cavity_rings);
+    if material.len() != 1 {
+        return Err("the cavity splits the block".into());
+    }
+    let rings: Vec<Vec<P2>> = material[0].holes.clone();
+    let sk = skirt(&material, &rings, ch)?;
+    let mut pieces = prisms(&sk.core, ZPlane::flat(-ch), ZPlane::flat(0.0));
+    for (quad, v, n) in &sk.wedges {
+        // Top face rises from z = -ch at the edge to z = 0 at the offset line.
+        let upper = ZPlane {
+            a: n.x,
+            b: n.y,
+            c: -ch - n.x * v.x - n.y * v.y,
+        };
+        pieces.push(ConvexPiece::slab(quad, ZPlane::flat(-ch), upper));
+    }
+    let floor = -CAVITY_DEPTH_M;
+    let bottom = floor - FLOOR_THICKNESS_M;
+    pieces.extend(prisms(&material, ZPlane::flat(floor), ZPlane::flat(-ch)));
+    pieces.push(ConvexPiece::slab(
+        &square,
+        ZPlane::flat(bottom),
+        ZPlane::flat(floor),
+    ));
+
+    let mut m = mesh::MeshBuilder::default();
+    m.cap(
+        &Region {
+            outer: square.clone(),
+            holes: sk.offset_rings.clone(),
+        },
+        0.0,
+        true,
+    );
+    for (ring, off) in rings.iter().zip(&sk.offset_rings) {
+        m.side_band(ring, -ch, off, 0.0);
+        m.side_band(ring, floor, ring, -ch);
+        let floor_region = Region {
+            outer: ring.iter().rev().cloned().collect(),
+            holes: vec![],
+        };
+        m.cap(&floor_region, floor, true);
+    }
+    m.side_band(&square, bottom, &square, 0.0);
+    m.cap(
+        &Region {
+            outer: square,
+            holes: vec![],
+        },
+        bottom,
+        false,
+    );
+    Ok((
+        Solid {
+            pieces,
+            boundary: Some(m.finish()),
+        },
+        rings,
+    ))
+}
+
+/// Writes `peg.stl` and `hole.stl` (millimetres, watertight) into `dir`, creating it. Files are
+/// written to temporary names and renamed, so a failure leaves no half-written STL.
+pub fn export_stl(pair: &PartPair, dir: &std::path::Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, format!("cannot create: {e}")))?;
+    for (name, solid) in [("peg.stl", &pair.peg), ("hole.stl", &pair.hole)] {
+        let mesh = solid.boundary.as_ref().ok_or_else(|| {
+            Error::Input(format!("{}: only built-in geometries can be exported", pair.name))
+        })?;
+        let tmp = dir.join(format!(".{name}.partial"));
+        mesh.write_stl_mm(&tmp)?;
+        let dest = dir.join(name);
+        std::fs::rename(&tmp, &dest)
+            .map_err(|e| Error::file(&dest, format!("cannot write: {e}")))?;
+    }
+    Ok(())
+}
