@@ -1,5 +1,8 @@
 //! pegtwin: a digital twin for robotic peg-in-hole assembly of complex parts by contact-manifold
 //! pose estimation (Negi et al.). See README.md for the pipeline and the commands.
 
+pub mod cli;
 pub mod error;
 pub mod geometry;
+pub mod sim;
+pub mod validate;

@@ -108,59 +108,68 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
     })
 }
 
-/// The bevel skirt along some rings of a region: quads from each edge to its mitred offset into
-/// the material, and what is left of the region inside them (the core).
+/// Width of the wall strips that carry the chamfers, as a multiple of the chamfer.
+const STRIP_WIDTH_FACTOR: f64 = 2.0;
+
+/// The chamfered edges of a region. Along each chamfered ring, a wall strip of width
+/// `STRIP_WIDTH_FACTOR` x chamfer runs from each edge to its mitred offset into the material,
+/// bounded by the corner bisectors (the straight skeleton, so neighbouring strips meet exactly);
+/// each strip is one convex piece with the 45-degree bevel cut on its edge. The rest of the
+/// region (the core) is decomposed into plain prisms. Chunky strips instead of separate bevel
+/// slivers keep the engine's convex-convex contacts sound.
 struct Skirt {
-    /// (quad footprint, a point on the edge, unit normal into the material).
-    wedges: Vec<(Vec<P2>, P2, nalgebra::Vector2<f64>)>,
-    /// Each chamfered ring offset by the chamfer width, vertex for vertex.
-    offset_rings: Vec<Vec<P2>>,
+    /// Per edge: (edge start, edge end, chamfer-offset start, end, strip-offset start, end).
+    strips: Vec<[P2; 6]>,
+    /// Each chamfered ring offset by the chamfer, vertex for vertex (for the boundary mesh).
+    chamfer_rings: Vec<Vec<P2>>,
     core: Vec<Region>,
 }
 
-fn skirt(material: &[Region], rings: &[Vec<P2>], width: f64) -> std::result::Result<Skirt, String> {
-    let mut wedges = Vec::new();
-    let mut offset_rings = Vec::new();
+fn skirt(material: &[Region], rings: &[Vec<P2>], chamfer: f64) -> std::result::Result<Skirt, String> {
+    let width = STRIP_WIDTH_FACTOR * chamfer;
+    let mut strips = Vec::new();
+    let mut chamfer_rings = Vec::new();
+    let collapse = |w: f64| {
+        format!(
+            "a {} mm wall strip collapses an edge of the profile; use a smaller chamfer",
+            w * 1e3
+        )
+    };
     for ring in rings {
-        let off = offset_left(ring, width).ok_or_else(|| {
-            format!(
-                "a {} mm chamfer collapses an edge of the profile; use a smaller chamfer",
-                width * 1e3
-            )
-        })?;
+        let c = offset_left(ring, chamfer).ok_or_else(|| collapse(chamfer))?;
+        let w = offset_left(ring, width).ok_or_else(|| collapse(width))?;
         let n = ring.len();
         for i in 0..n {
             let j = (i + 1) % n;
-            let quad = vec![ring[i], ring[j], off[j], off[i]];
-            let dir = (ring[j] - ring[i]).normalize();
-            wedges.push((quad, ring[i], nalgebra::Vector2::new(-dir.y, dir.x)));
+            strips.push([ring[i], ring[j], c[i], c[j], w[i], w[j]]);
         }
-        offset_rings.push(off);
+        chamfer_rings.push(c);
     }
-    let quads: Vec<Vec<P2>> = wedges.iter().map(|w| w.0.clone()).collect();
+    let quads: Vec<Vec<P2>> = strips.iter().map(|s| vec![s[0], s[1], s[5], s[4]]).collect();
     Ok(Skirt {
         core: difference(material, &quads),
-        wedges,
-        offset_rings,
+        strips,
+        chamfer_rings,
     })
 }
 
-/// The peg: chamfered tip band, the pin(s), and the body block on top.
+/// A strip piece: the edge at `z_edge`, the chamfer line and the strip's inner line at `z_face`
+/// (the end face, tip or mouth), and all of them at `z_far` (the other end).
+fn strip_piece(s: &[P2; 6], z_edge: f64, z_face: f64, z_far: f64) -> Option<ConvexPiece> {
+    let at = |p: P2, z: f64| solid::P3::new(p.x, p.y, z);
+    let mut pts = vec![at(s[0], z_edge), at(s[1], z_edge)];
+    pts.extend(s[2..].iter().map(|&p| at(p, z_face)));
+    pts.extend(s.iter().map(|&p| at(p, z_far)));
+    ConvexPiece::from_points(&pts)
+}
+
+/// The peg: pin(s) with a chamfered tip, and the body block on top.
 fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
     let ch = PEG_TIP_CHAMFER_M;
     let rings: Vec<Vec<P2>> = profile.iter().flat_map(|r| r.rings().cloned()).collect();
     let sk = skirt(profile, &rings, ch)?;
-    let mut pieces = prisms(&sk.core, ZPlane::flat(0.0), ZPlane::flat(ch));
-    for (quad, v, n) in &sk.wedges {
-        // Bottom face rises from z = 0 at the offset line to z = ch at the edge.
-        let lower = ZPlane {
-            a: -n.x,
-            b: -n.y,
-            c: ch + n.x * v.x + n.y * v.y,
-        };
-        pieces.push(ConvexPiece::slab(quad, lower, ZPlane::flat(ch)));
-    }
-    pieces.extend(prisms(profile, ZPlane::flat(ch), ZPlane::flat(PIN_LENGTH_M)));
+    let mut pieces = prisms(&sk.core, ZPlane::flat(0.0), ZPlane::flat(PIN_LENGTH_M));
+    pieces.extend(sk.strips.iter().filter_map(|s| strip_piece(s, ch, 0.0, PIN_LENGTH_M)));
     let half = BODY_SIZE_M / 2.0;
     let body = rect(-half, -half, half, half);
     let top = PIN_LENGTH_M + BODY_HEIGHT_M;
@@ -171,7 +180,7 @@ fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
     ));
 
     let mut m = mesh::MeshBuilder::default();
-    for (ring, off) in rings.iter().zip(&sk.offset_rings) {
+    for (ring, off) in rings.iter().zip(&sk.chamfer_rings) {
         m.side_band(off, 0.0, ring, ch);
         m.side_band(ring, ch, ring, PIN_LENGTH_M);
     }
@@ -179,8 +188,8 @@ fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
     for region in profile {
         let n_rings = 1 + region.holes.len();
         let tip = Region {
-            outer: sk.offset_rings[k].clone(),
-            holes: sk.offset_rings[k + 1..k + n_rings].to_vec(),
+            outer: sk.chamfer_rings[k].clone(),
+            holes: sk.chamfer_rings[k + 1..k + n_rings].to_vec(),
         };
         m.cap(&tip, 0.0, false);
         k += n_rings;
@@ -208,7 +217,7 @@ fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
     })
 }
 
-/// The hole block: walls around the cavity, a chamfered band at the mouth, and the floor slab.
+/// The hole block: walls around the cavity with a chamfered mouth, and the floor slab.
 /// Returns the solid and the cavity rings (material on the left).
 fn build_hole(cavity: &[Region]) -> std::result::Result<(Solid, Vec<Vec<P2>>), String> {
     let ch = HOLE_ENTRY_CHAMFER_M;
@@ -225,19 +234,10 @@ fn build_hole(cavity: &[Region]) -> std::result::Result<(Solid, Vec<Vec<P2>>), S
     }
     let rings: Vec<Vec<P2>> = material[0].holes.clone();
     let sk = skirt(&material, &rings, ch)?;
-    let mut pieces = prisms(&sk.core, ZPlane::flat(-ch), ZPlane::flat(0.0));
-    for (quad, v, n) in &sk.wedges {
-        // Top face rises from z = -ch at the edge to z = 0 at the offset line.
-        let upper = ZPlane {
-            a: n.x,
-            b: n.y,
-            c: -ch - n.x * v.x - n.y * v.y,
-        };
-        pieces.push(ConvexPiece::slab(quad, ZPlane::flat(-ch), upper));
-    }
     let floor = -CAVITY_DEPTH_M;
     let bottom = floor - FLOOR_THICKNESS_M;
-    pieces.extend(prisms(&material, ZPlane::flat(floor), ZPlane::flat(-ch)));
+    let mut pieces = prisms(&sk.core, ZPlane::flat(floor), ZPlane::flat(0.0));
+    pieces.extend(sk.strips.iter().filter_map(|s| strip_piece(s, -ch, 0.0, floor)));
     pieces.push(ConvexPiece::slab(
         &square,
         ZPlane::flat(bottom),
@@ -248,12 +248,12 @@ fn build_hole(cavity: &[Region]) -> std::result::Result<(Solid, Vec<Vec<P2>>), S
     m.cap(
         &Region {
             outer: square.clone(),
-            holes: sk.offset_rings.clone(),
+            holes: sk.chamfer_rings.clone(),
         },
         0.0,
         true,
     );
-    for (ring, off) in rings.iter().zip(&sk.offset_rings) {
+    for (ring, off) in rings.iter().zip(&sk.chamfer_rings) {
         m.side_band(ring, -ch, off, 0.0);
         m.side_band(ring, floor, ring, -ch);
         let floor_region = Region {

@@ -1,0 +1,215 @@
+//! The command line: parses, calls the library, prints. Flags that people type take millimetres
+//! and degrees and say so in their names.
+
+use crate::error::{Error, Result};
+use crate::geometry::mesh::{MeshUnits, load_solid};
+use crate::geometry::{self, Builtin, PartPair};
+use crate::sim::PhysicsParams;
+use crate::validate::{FreePegGains, ValidationReport, validate};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(name = "pegtwin", version, about = "Digital twin for peg-in-hole assembly by contact-manifold pose estimation")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Built-in peg/hole geometries: list them, export them as STL.
+    Geometry {
+        #[command(subcommand)]
+        action: GeometryAction,
+    },
+    /// Self-check the contact physics on a pair before trusting a campaign (exit 0 only if every
+    /// case behaves as expected).
+    Validate(ValidateArgs),
+}
+
+#[derive(Subcommand)]
+pub enum GeometryAction {
+    /// Show the built-ins and their dimensions.
+    List {
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write peg.stl and hole.stl (millimetres, watertight, hole frame at the mouth centre).
+    Export {
+        /// Built-in name (see `geometry list`).
+        name: String,
+        /// Diametral clearance, mm (hole size minus peg size).
+        #[arg(long)]
+        clearance_mm: f64,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+/// Which pair to use: a built-in, or meshes.
+#[derive(Args)]
+pub struct PairArgs {
+    /// Built-in geometry name (see `geometry list`).
+    #[arg(long, required_unless_present_all = ["peg_mesh", "hole_mesh"])]
+    pub geometry: Option<String>,
+    /// Diametral clearance, mm. For meshes: the clearance they were made with.
+    #[arg(long)]
+    pub clearance_mm: f64,
+    /// Peg mesh, peg frame (tip centre at the origin, z up the peg): a folder of convex STL/OBJ
+    /// parts or one STL/OBJ file to decompose.
+    #[arg(long, requires = "hole_mesh", conflicts_with = "geometry")]
+    pub peg_mesh: Option<PathBuf>,
+    /// Hole mesh, hole frame (mouth centre at the origin, z out of the hole); as --peg-mesh.
+    #[arg(long, requires_all = ["peg_mesh", "depth_mm"])]
+    pub hole_mesh: Option<PathBuf>,
+    /// Length unit of the mesh files.
+    #[arg(long, value_enum, default_value = "m")]
+    pub mesh_units: MeshUnits,
+    /// Cavity depth of a mesh hole, mouth to floor, mm.
+    #[arg(long)]
+    pub depth_mm: Option<f64>,
+}
+
+#[derive(Args)]
+pub struct ValidateArgs {
+    #[command(flatten)]
+    pub pair: PairArgs,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl PairArgs {
+    /// Builds the pair, printing mesh warnings to stderr.
+    pub fn build(&self) -> Result<PartPair> {
+        let clearance_m = self.clearance_mm * 1e-3;
+        geometry::check_clearance(clearance_m)?;
+        match (&self.geometry, &self.peg_mesh, &self.hole_mesh) {
+            (Some(name), _, _) => geometry::build_builtin(geometry::builtin_by_name(name)?, clearance_m),
+            (None, Some(peg_path), Some(hole_path)) => {
+                let depth_mm = self.depth_mm.unwrap_or(f64::NAN);
+                if !(depth_mm > 0.0) {
+                    return Err(Error::Input(format!(
+                        "--depth-mm {depth_mm}: expected the cavity depth of the mesh hole, more than 0 mm"
+                    )));
+                }
+                let half_gap = clearance_m / 2.0;
+                let peg = load_solid(peg_path, self.mesh_units, half_gap)?;
+                let hole = load_solid(hole_path, self.mesh_units, half_gap)?;
+                for w in peg.warnings.iter().chain(&hole.warnings) {
+                    eprintln!("warning: {w}");
+                }
+                Ok(PartPair {
+                    name: format!("{} in {}", peg_path.display(), hole_path.display()),
+                    clearance_m,
+                    chord_error_m: 0.0,
+                    peg: peg.solid,
+                    hole: hole.solid,
+                    cavity_depth_m: depth_mm * 1e-3,
+                    peg_rings: vec![],
+                    cavity_rings: vec![],
+                })
+            }
+            _ => Err(Error::Input(
+                "give --geometry NAME, or both --peg-mesh and --hole-mesh".into(),
+            )),
+        }
+    }
+}
+
+/// Runs a parsed command; returns the process exit code.
+pub fn run(cli: Cli) -> Result<i32> {
+    match cli.command {
+        Command::Geometry { action } => geometry_command(action),
+        Command::Validate(args) => {
+            let pair = args.pair.build()?;
+            let report = validate(&pair, &PhysicsParams::default(), FreePegGains::default());
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&report).expect("report serialises"));
+            } else {
+                print_validation(&report);
+            }
+            Ok(if report.passed { 0 } else { 1 })
+        }
+    }
+}
+
+fn geometry_command(action: GeometryAction) -> Result<i32> {
+    match action {
+        GeometryAction::List { json } => {
+            let list: Vec<serde_json::Value> = Builtin::ALL
+                .iter()
+                .map(|b| {
+                    serde_json::json!({
+                        "name": b.name(),
+                        "description": b.description(),
+                        "dimensions_mm": b.dimensions(),
+                    })
+                })
+                .collect();
+            if json {
+                println!("{}", serde_json::to_string_pretty(&list).expect("list serialises"));
+            } else {
+                for b in Builtin::ALL {
+                    println!("{:<10} {}", b.name(), b.description());
+                    let dims: Vec<String> = b
+                        .dimensions()
+                        .iter()
+                        .map(|d| format!("{} {} mm", d.name, d.value_mm))
+                        .collect();
+                    println!("{:<10} {}", "", dims.join(", "));
+                }
+                println!(
+                    "\nall: engagement pin {} mm, blind cavity {} mm deep in a {} x {} mm block, chamfers {} mm (peg tip) and {} mm (hole mouth)",
+                    geometry::PIN_LENGTH_M * 1e3,
+                    geometry::CAVITY_DEPTH_M * 1e3,
+                    geometry::BLOCK_SIZE_M * 1e3,
+                    geometry::BLOCK_SIZE_M * 1e3,
+                    geometry::PEG_TIP_CHAMFER_M * 1e3,
+                    geometry::HOLE_ENTRY_CHAMFER_M * 1e3
+                );
+            }
+            Ok(0)
+        }
+        GeometryAction::Export {
+            name,
+            clearance_mm,
+            out,
+        } => {
+            let pair = geometry::build_builtin(geometry::builtin_by_name(&name)?, clearance_mm * 1e-3)?;
+            geometry::export_stl(&pair, &out)?;
+            println!(
+                "wrote {} and {} (mm; clearance {} mm, chord error at most {:.4} mm)",
+                out.join("peg.stl").display(),
+                out.join("hole.stl").display(),
+                clearance_mm,
+                pair.chord_error_m * 1e3
+            );
+            Ok(0)
+        }
+    }
+}
+
+fn print_validation(r: &ValidationReport) {
+    println!(
+        "validate {} at {} mm clearance (penetration limit {:.4} mm)",
+        r.geometry, r.clearance_mm, r.penetration_limit_mm
+    );
+    for c in &r.cases {
+        println!(
+            "{} {:<18} pen {:.4} mm  F_solver ({:+.3}, {:+.3}, {:+.3}) N  momentum err {:.2} %  {:.0} steps/s",
+            if c.passed { "PASS" } else { "FAIL" },
+            c.name,
+            c.max_penetration_mm,
+            c.force_readout_n[0],
+            c.force_readout_n[1],
+            c.force_readout_n[2],
+            c.force_error_pct,
+            c.steps_per_s
+        );
+        println!("     expected: {}\n     observed: {}", c.expected, c.observed);
+    }
+    println!("{}", if r.passed { "all cases as expected" } else { "SOME CASES FAILED" });
+}

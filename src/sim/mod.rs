@@ -1,0 +1,173 @@
+//! The physics world: one place that builds rapier with integration parameters validated for
+//! sub-millimetre clearance, puts solids in it, and reads the contact wrench on a body.
+//!
+//! Parameters (see `../shared/notes/rapier-at-submillimetre.md`, re-measured by `pegtwin validate`):
+//! contact recycling off (stale contacts let a peg tunnel or jam falsely in a tight hole),
+//! contact clustering off (clustered impulses over-report the force), `length_unit` 0.01 m, contact
+//! softness 240 Hz (the default 30/60 Hz lets a peg sink into a rim it cannot enter), 1 ms step,
+//! 4 solver iterations, Coulomb friction per contact point.
+
+pub mod contact;
+pub mod penetration;
+
+use crate::geometry::solid::Solid;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rapier3d::prelude::*;
+
+/// Integration and contact parameters.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PhysicsParams {
+    /// Physics step, seconds.
+    pub dt_s: f64,
+    /// Solver iterations (substeps) per step.
+    pub solver_iterations: usize,
+    /// rapier's length unit, metres.
+    pub length_unit_m: f64,
+    /// Contact constraint natural frequency, Hz (dynamic and static contacts).
+    pub contact_frequency_hz: f64,
+    /// Coulomb friction coefficient between peg and hole.
+    pub friction: f64,
+}
+
+impl Default for PhysicsParams {
+    fn default() -> Self {
+        PhysicsParams {
+            dt_s: 1e-3,
+            solver_iterations: 4,
+            length_unit_m: 0.01,
+            contact_frequency_hz: 240.0,
+            friction: 0.3,
+        }
+    }
+}
+
+impl PhysicsParams {
+    /// rapier's integration parameters for these settings.
+    pub fn integration_parameters(&self) -> IntegrationParameters {
+        let mut p = IntegrationParameters {
+            dt: self.dt_s as f32,
+            num_solver_iterations: self.solver_iterations,
+            length_unit: self.length_unit_m as f32,
+            contact_recycling: false,
+            contact_clustering: false,
+            friction_model: FrictionModel::Coulomb,
+            ..Default::default()
+        };
+        p.contact_softness.natural_frequency = self.contact_frequency_hz as f32;
+        p.static_contact_softness.natural_frequency = self.contact_frequency_hz as f32;
+        p
+    }
+
+    /// An empty world with gravity -9.81 m/s^2 along z.
+    pub fn new_world(&self) -> PhysicsWorld {
+        let mut world = PhysicsWorld::new();
+        world.narrow_phase = NarrowPhase::with_query_dispatcher(contact::ExactConvexDispatcher);
+        world.gravity = Vector::new(0.0, 0.0, -9.81);
+        world.integration_parameters = self.integration_parameters();
+        world
+    }
+}
+
+/// A force and a torque, N and N m, in the world frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Wrench {
+    pub force: Vector3<f64>,
+    pub torque: Vector3<f64>,
+}
+
+/// glam vector to nalgebra f64.
+pub fn v64(v: Vector) -> Vector3<f64> {
+    Vector3::new(v.x as f64, v.y as f64, v.z as f64)
+}
+
+/// nalgebra f64 vector to glam.
+pub fn v32(v: &Vector3<f64>) -> Vector {
+    Vector::new(v.x as f32, v.y as f32, v.z as f32)
+}
+
+/// A rapier pose as an f64 isometry.
+pub fn pose64(p: &Pose) -> Isometry3<f64> {
+    let iso: Isometry3<f32> = (*p).into();
+    iso.cast::<f64>()
+}
+
+/// An f64 isometry as a rapier pose.
+pub fn pose32(p: &Isometry3<f64>) -> Pose {
+    let t = Translation3::from(p.translation.vector.cast::<f32>());
+    let r: UnitQuaternion<f32> = p.rotation.cast::<f32>();
+    Isometry3::from_parts(t, r).into()
+}
+
+/// One compound collider made of a solid's convex pieces.
+pub fn compound_collider(solid: &Solid, friction: f64) -> ColliderBuilder {
+    let shapes: Vec<(Pose, SharedShape)> = solid
+        .pieces
+        .iter()
+        .filter_map(|p| SharedShape::convex_hull(&p.points_f32()))
+        .map(|s| (Pose::IDENTITY, s))
+        .collect();
+    ColliderBuilder::compound(shapes).friction(friction as f32)
+}
+
+/// Adds a fixed solid at `pose`; returns its collider.
+pub fn add_fixed(
+    world: &mut PhysicsWorld,
+    solid: &Solid,
+    pose: &Isometry3<f64>,
+    friction: f64,
+) -> ColliderHandle {
+    let body = world.insert_body(RigidBodyBuilder::fixed().pose(pose32(pose)));
+    world.insert_collider(compound_collider(solid, friction), Some(body))
+}
+
+/// Adds a dynamic solid of `mass_kg` (uniform density) at `pose`; returns body and collider.
+pub fn add_dynamic(
+    world: &mut PhysicsWorld,
+    solid: &Solid,
+    pose: &Isometry3<f64>,
+    mass_kg: f64,
+    friction: f64,
+) -> (RigidBodyHandle, ColliderHandle) {
+    let body = world.insert_body(
+        RigidBodyBuilder::dynamic()
+            .pose(pose32(pose))
+            .can_sleep(false),
+    );
+    let collider = world.insert_collider(
+        compound_collider(solid, friction).mass(mass_kg as f32),
+        Some(body),
+    );
+    (body, collider)
+}
+
+/// The contact wrench that all other colliders exert on `collider` during the last step, from the
+/// solver's normal and friction impulses divided by the step; the torque is about `about` (world).
+pub fn contact_wrench(world: &PhysicsWorld, collider: ColliderHandle, about: Vector3<f64>) -> Wrench {
+    let dt = world.integration_parameters.dt as f64;
+    let mut w = Wrench::default();
+    for pair in world.narrow_phase.contact_pairs_with(collider) {
+        // Impulses are stored as applied to collider1's body.
+        let sign = if pair.collider1 == collider { 1.0 } else { -1.0 };
+        let Some(rigid) = pair.rigid() else {
+            continue;
+        };
+        for manifold in rigid.solver_manifolds() {
+            let dir1 = -manifold.data.normal;
+            let t1 = rapier3d::utils::OrthonormalBasis::orthonormal_vector(dir1);
+            let t2 = dir1.cross(t1);
+            for contact in &manifold.data.solver_contacts {
+                let point = &manifold.points[contact.contact_id[0] as usize & 0x7fff_ffff];
+                let data = &point.data;
+                let impulse = dir1 * data.impulse
+                    + t1 * data.tangent_impulse.x
+                    + t2 * data.tangent_impulse.y;
+                let f = v64(impulse) * (sign / dt);
+                let (p1, p2) = manifold.data.solver_contact_world_points(contact, &world.bodies);
+                let at = v64((p1 + p2) * 0.5);
+                w.force += f;
+                w.torque += (at - about).cross(&f);
+            }
+        }
+    }
+    w
+}

@@ -1,0 +1,391 @@
+//! `pegtwin validate`: a self-check a user runs on a peg/hole pair before trusting a campaign.
+//!
+//! A free peg (the peg alone, as a rigid body) is held by a 6-DoF Cartesian impedance at its tip
+//! and driven through a fixed matrix of cases. Each case states the outcome it expects and
+//! reports what it observed, the largest exact penetration (f64 separating axes, see
+//! `sim::penetration`), the contact force read from the solver against a momentum check
+//! (m dv/dt minus the applied forces), and the physics speed in steps per second.
+
+use crate::geometry::PartPair;
+use crate::sim::penetration::PenetrationProbe;
+use crate::sim::{PhysicsParams, add_dynamic, add_fixed, contact_wrench, pose64, v32, v64};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rapier3d::prelude::{ColliderHandle, PhysicsWorld, RigidBodyHandle};
+use serde::Serialize;
+use std::time::Instant;
+
+/// Mass of the free peg with its holder, kg.
+pub const FREE_PEG_MASS_KG: f64 = 0.3;
+/// Largest exact penetration allowed, as a fraction of the gap on each side (c/2).
+pub const PENETRATION_FRACTION: f64 = 0.10;
+/// Largest difference between the solver's contact force and the momentum check, fraction.
+pub const FORCE_AGREEMENT: f64 = 0.02;
+/// Steps at the end of each case over which forces are averaged (the peg is at rest there).
+const SETTLE_WINDOW_STEPS: usize = 200;
+
+/// Gains of the free peg's impedance at its tip.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct FreePegGains {
+    pub stiffness_n_per_m: f64,
+    pub rot_stiffness_nm_per_rad: f64,
+    pub damping_ratio: f64,
+}
+
+impl Default for FreePegGains {
+    fn default() -> Self {
+        FreePegGains {
+            stiffness_n_per_m: 2000.0,
+            rot_stiffness_nm_per_rad: 20.0,
+            damping_ratio: 0.7,
+        }
+    }
+}
+
+/// A free peg over a fixed hole at the world origin, under impedance control at the peg tip.
+pub struct FreePegRig {
+    pub world: PhysicsWorld,
+    body: RigidBodyHandle,
+    collider: ColliderHandle,
+    mass_kg: f64,
+    damping_trans: f64,
+    damping_rot: f64,
+    gains: FreePegGains,
+    /// Target pose of the peg frame (tip), world.
+    pub target: Isometry3<f64>,
+}
+
+/// What one step measured.
+pub struct StepSample {
+    /// Contact force on the peg read from the solver, N.
+    pub readout: Vector3<f64>,
+    /// Contact force on the peg from the momentum balance, N.
+    pub momentum: Vector3<f64>,
+    /// Wall time of the physics step alone, seconds.
+    pub step_s: f64,
+}
+
+impl FreePegRig {
+    pub fn new(
+        pair: &PartPair,
+        params: &PhysicsParams,
+        start: &Isometry3<f64>,
+        gains: FreePegGains,
+    ) -> Self {
+        let mut world = params.new_world();
+        add_fixed(&mut world, &pair.hole, &Isometry3::identity(), params.friction);
+        let (body, collider) = add_dynamic(
+            &mut world,
+            &pair.peg,
+            start,
+            FREE_PEG_MASS_KG,
+            params.friction,
+        );
+        // Mass properties are computed when the collider is attached; read them back.
+        world.step();
+        let rb = &world.bodies[body];
+        let mass_kg = rb.mass() as f64;
+        let inertia = rb.mass_properties().local_mprops.principal_inertia();
+        let inertia_min = inertia.x.min(inertia.y).min(inertia.z) as f64;
+        let zeta = gains.damping_ratio;
+        let rig = FreePegRig {
+            damping_trans: 2.0 * zeta * (gains.stiffness_n_per_m * mass_kg).sqrt(),
+            damping_rot: 2.0 * zeta * (gains.rot_stiffness_nm_per_rad * inertia_min).sqrt(),
+            world,
+            body,
+            collider,
+            mass_kg,
+            gains,
+            target: *start,
+        };
+        let mut rig = rig;
+        rig.reset_to(start);
+        rig
+    }
+
+    /// Puts the peg at `pose`, at rest, and makes it the target.
+    fn reset_to(&mut self, pose: &Isometry3<f64>) {
+        let rb = &mut self.world.bodies[self.body];
+        rb.set_position(crate::sim::pose32(pose), true);
+        rb.set_linvel(rapier3d::prelude::Vector::ZERO, true);
+        rb.set_angvel(rapier3d::prelude::Vector::ZERO, true);
+        self.target = *pose;
+    }
+
+    /// Pose of the peg frame (tip), world.
+    pub fn tip_pose(&self) -> Isometry3<f64> {
+        pose64(self.world.bodies[self.body].position())
+    }
+
+    /// Applies the impedance wrench, steps the physics once, and measures the contact force.
+    pub fn step(&mut self) -> StepSample {
+        let dt = self.world.integration_parameters.dt as f64;
+        let rb = &self.world.bodies[self.body];
+        let pose = pose64(rb.position());
+        let com = v64(rb.center_of_mass());
+        let v_com = v64(rb.linvel());
+        let omega = v64(rb.angvel());
+        let tip = pose.translation.vector;
+        let v_tip = v_com + omega.cross(&(tip - com));
+        let force = (self.target.translation.vector - tip) * self.gains.stiffness_n_per_m
+            - v_tip * self.damping_trans;
+        let rot_err = (self.target.rotation * pose.rotation.inverse()).scaled_axis();
+        let torque = rot_err * self.gains.rot_stiffness_nm_per_rad - omega * self.damping_rot
+            + (tip - com).cross(&force);
+        let gravity_comp = Vector3::new(0.0, 0.0, 9.81 * self.mass_kg);
+        let rb = &mut self.world.bodies[self.body];
+        rb.reset_forces(true);
+        rb.reset_torques(true);
+        rb.add_force(v32(&(force + gravity_comp)), true);
+        rb.add_torque(v32(&torque), true);
+        let started = Instant::now();
+        self.world.step();
+        let step_s = started.elapsed().as_secs_f64();
+        let rb = &self.world.bodies[self.body];
+        let v_after = v64(rb.linvel());
+        let com_after = v64(rb.center_of_mass());
+        StepSample {
+            readout: contact_wrench(&self.world, self.collider, com_after).force,
+            momentum: (v_after - v_com) * (self.mass_kg / dt) - force,
+            step_s,
+        }
+    }
+}
+
+/// The result of one validation case.
+#[derive(Clone, Debug, Serialize)]
+pub struct CaseReport {
+    pub name: String,
+    pub expected: String,
+    pub observed: String,
+    pub outcome_ok: bool,
+    pub max_penetration_mm: f64,
+    pub penetration_ok: bool,
+    /// Contact force from the solver, averaged over the final settled window, N.
+    pub force_readout_n: [f64; 3],
+    /// Contact force from the momentum balance over the same window, N.
+    pub force_momentum_n: [f64; 3],
+    /// |readout - momentum| / |momentum|, percent.
+    pub force_error_pct: f64,
+    pub force_ok: bool,
+    pub steps_per_s: f64,
+    pub passed: bool,
+}
+
+/// The whole validation.
+#[derive(Clone, Debug, Serialize)]
+pub struct ValidationReport {
+    pub geometry: String,
+    pub clearance_mm: f64,
+    pub penetration_limit_mm: f64,
+    pub physics: PhysicsParams,
+    pub gains: FreePegGains,
+    pub cases: Vec<CaseReport>,
+    pub passed: bool,
+}
+
+/// How a case drives the peg and judges it.
+struct Case {
+    name: &'static str,
+    expected: String,
+    start: Isometry3<f64>,
+    /// Target tip position at time t (seconds), the orientation target being upright.
+    target: Box<dyn Fn(f64) -> Vector3<f64>>,
+    duration_s: f64,
+    /// Judges the run from the final tip pose and the lowest tip z seen.
+    judge: Box<dyn Fn(&Isometry3<f64>, f64, &Vector3<f64>) -> (bool, String)>,
+}
+
+fn upright(x: f64, y: f64, z: f64) -> Isometry3<f64> {
+    Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::identity())
+}
+
+/// Raises a start pose in 10 micrometre steps until the peg does not penetrate the hole.
+fn lift_until_free(probe: &PenetrationProbe, pair: &PartPair, pose: Isometry3<f64>) -> Isometry3<f64> {
+    let mut p = pose;
+    while probe.max_penetration(&pair.peg, &p) > 0.0 {
+        p.translation.vector.z += 10e-6;
+    }
+    p
+}
+
+fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec<Case> {
+    let depth = pair.cavity_depth_m;
+    let half_gap = pair.clearance_m / 2.0;
+    let k = gains.stiffness_n_per_m;
+    let press = 1e-3;
+    let speed = 20e-3;
+    let insertion_time = (depth + press) / speed;
+    let full_depth = move |tip: &Isometry3<f64>, _: f64, _: &Vector3<f64>| {
+        let z = tip.translation.vector.z;
+        (
+            z <= -depth + 0.1e-3,
+            format!("tip at z = {:.3} mm (floor at {:.3} mm)", z * 1e3, -depth * 1e3),
+        )
+    };
+    let descend = move |z0: f64| -> Box<dyn Fn(f64) -> Vector3<f64>> {
+        Box::new(move |t: f64| Vector3::new(0.0, 0.0, (z0 - speed * t).max(-depth - press)))
+    };
+    let tilted = |deg: f64| {
+        let tilt = Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, -2e-3),
+            UnitQuaternion::from_euler_angles(deg.to_radians(), 0.0, 0.0),
+        );
+        lift_until_free(probe, pair, tilt)
+    };
+    let rim_offset = (1.5e-3f64).max(3.0 * pair.clearance_m);
+    let wall_offset = 1e-3;
+    vec![
+        Case {
+            name: "aligned_insertion",
+            expected: "reaches full depth from 2 mm partial insertion".into(),
+            start: upright(0.0, 0.0, -2e-3),
+            target: descend(-2e-3),
+            duration_s: insertion_time + 0.5,
+            judge: Box::new(full_depth),
+        },
+        Case {
+            name: "lateral_press",
+            expected: format!(
+                "pressed 1 mm sideways at 10 mm depth, stays in the hole: tip within c/2 = {:.3} mm of the axis",
+                half_gap * 1e3
+            ),
+            start: upright(0.0, 0.0, -10e-3),
+            target: Box::new(move |_| Vector3::new(wall_offset, 0.0, -10e-3)),
+            duration_s: 0.6,
+            judge: Box::new(move |tip, _, f| {
+                let x = tip.translation.vector.x;
+                (
+                    x <= half_gap + 0.01e-3 && f.x < -0.5 * k * (wall_offset - half_gap),
+                    format!("tip x = {:.4} mm, wall force {:.2} N", x * 1e3, -f.x),
+                )
+            }),
+        },
+        Case {
+            name: "tilted_1deg",
+            expected: "starts tilted 1 deg, aligns and reaches full depth".into(),
+            start: tilted(1.0),
+            target: descend(-2e-3),
+            duration_s: insertion_time + 0.5,
+            judge: Box::new(full_depth),
+        },
+        Case {
+            name: "tilted_3deg",
+            expected: "starts tilted 3 deg, aligns and reaches full depth".into(),
+            start: tilted(3.0),
+            target: descend(-2e-3),
+            duration_s: insertion_time + 0.5,
+            judge: Box::new(full_depth),
+        },
+        Case {
+            name: "rim_jam",
+            expected: format!(
+                "resting on the rim {:.1} mm off the axis, pushed 5 mm down: jams, no entry (tip stays above -0.05 mm)",
+                rim_offset * 1e3
+            ),
+            start: upright(rim_offset, 0.0, 1e-3),
+            target: Box::new(move |_| Vector3::new(rim_offset, 0.0, -5e-3)),
+            duration_s: 1.0,
+            judge: Box::new(|tip, min_z, _| {
+                (
+                    min_z >= -0.05e-3,
+                    format!(
+                        "lowest tip z = {:.4} mm, final {:.4} mm",
+                        min_z * 1e3,
+                        tip.translation.vector.z * 1e3
+                    ),
+                )
+            }),
+        },
+        Case {
+            name: "floor_press",
+            expected: format!(
+                "pressed 1 mm into the floor: force = stiffness x offset ({:.2} N)",
+                k * press
+            ),
+            start: upright(0.0, 0.0, -depth + 10e-6),
+            target: Box::new(move |_| Vector3::new(0.0, 0.0, -depth - press)),
+            duration_s: 0.6,
+            judge: Box::new(move |tip, _, f| {
+                let offset = tip.translation.vector.z - (-depth - press);
+                let expected = k * offset;
+                (
+                    (f.z - expected).abs() <= FORCE_AGREEMENT * expected,
+                    format!(
+                        "floor force {:.4} N vs stiffness x offset {:.4} N",
+                        f.z, expected
+                    ),
+                )
+            }),
+        },
+    ]
+}
+
+fn run_case(
+    case: &Case,
+    pair: &PartPair,
+    params: &PhysicsParams,
+    gains: FreePegGains,
+    probe: &PenetrationProbe,
+    limit_m: f64,
+) -> CaseReport {
+    let mut rig = FreePegRig::new(pair, params, &case.start, gains);
+    let steps = (case.duration_s / params.dt_s).round() as usize;
+    let mut max_pen: f64 = 0.0;
+    let mut min_z = f64::INFINITY;
+    let mut step_time = 0.0;
+    let (mut readout, mut momentum) = (Vector3::zeros(), Vector3::zeros());
+    for i in 0..steps {
+        let t = i as f64 * params.dt_s;
+        let target = (case.target)(t);
+        rig.target = Isometry3::from_parts(Translation3::from(target), UnitQuaternion::identity());
+        let s = rig.step();
+        step_time += s.step_s;
+        let tip = rig.tip_pose();
+        min_z = min_z.min(tip.translation.vector.z);
+        max_pen = max_pen.max(probe.max_penetration(&pair.peg, &tip));
+        if i + SETTLE_WINDOW_STEPS >= steps {
+            readout += s.readout;
+            momentum += s.momentum;
+        }
+    }
+    let n = SETTLE_WINDOW_STEPS.min(steps) as f64;
+    let (readout, momentum) = (readout / n, momentum / n);
+    let tip = rig.tip_pose();
+    let (outcome_ok, observed) = (case.judge)(&tip, min_z, &readout);
+    let force_error = (readout - momentum).norm() / momentum.norm().max(1e-9);
+    let force_ok = force_error <= FORCE_AGREEMENT;
+    let penetration_ok = max_pen <= limit_m;
+    CaseReport {
+        name: case.name.into(),
+        expected: case.expected.clone(),
+        observed,
+        outcome_ok,
+        max_penetration_mm: max_pen * 1e3,
+        penetration_ok,
+        force_readout_n: readout.into(),
+        force_momentum_n: momentum.into(),
+        force_error_pct: force_error * 100.0,
+        force_ok,
+        steps_per_s: steps as f64 / step_time,
+        passed: outcome_ok && penetration_ok && force_ok,
+    }
+}
+
+/// Runs the whole matrix on a pair.
+pub fn validate(pair: &PartPair, params: &PhysicsParams, gains: FreePegGains) -> ValidationReport {
+    let probe = PenetrationProbe::new(&pair.hole, &Isometry3::identity());
+    let limit_m = PENETRATION_FRACTION * pair.clearance_m / 2.0;
+    let reports: Vec<CaseReport> = cases(pair, &probe, &gains)
+        .iter()
+        .map(|c| run_case(c, pair, params, gains, &probe, limit_m))
+        .collect();
+    ValidationReport {
+        geometry: pair.name.clone(),
+        clearance_mm: pair.clearance_m * 1e3,
+        penetration_limit_mm: limit_m * 1e3,
+        physics: params.clone(),
+        gains,
+        passed: reports.iter().all(|r| r.passed),
+        cases: reports,
+    }
+}
