@@ -8,42 +8,19 @@ use std::collections::HashMap;
 
 const CLEARANCES_MM: [f64; 4] = [0.1, 0.2, 0.5, 1.0];
 
-/// Exact f64 volume of a convex piece: pyramids from its centroid over each face, each face
-/// being the vertices on its supporting plane, ordered by angle.
+/// Volume of a convex piece in f64 from its outward faces (tetrahedra from the centroid).
 fn piece_volume(piece: &ConvexPiece) -> f64 {
-    let c = piece.vertices.iter().map(|p| p.coords).sum::<Vector3<f64>>()
-        / piece.vertices.len() as f64;
-    let mut seen: Vec<Vector3<f64>> = Vec::new();
-    let mut volume = 0.0;
-    for n in &piece.face_normals {
-        if seen.iter().any(|m| (m - n).norm() < 1e-9) {
-            continue;
-        }
-        seen.push(*n);
-        let support = piece.vertices.iter().map(|p| p.coords.dot(n)).fold(f64::MIN, f64::max);
-        let face: Vec<Vector3<f64>> = piece
-            .vertices
-            .iter()
-            .map(|p| p.coords)
-            .filter(|p| (p.dot(n) - support).abs() < 1e-12)
-            .collect();
-        if face.len() < 3 {
-            continue;
-        }
-        let fc = face.iter().sum::<Vector3<f64>>() / face.len() as f64;
-        let u = (face[0] - fc).normalize();
-        let w = n.cross(&u);
-        let mut ordered = face.clone();
-        ordered.sort_by(|a, b| {
-            let ang = |p: &Vector3<f64>| (p - fc).dot(&w).atan2((p - fc).dot(&u));
-            ang(a).total_cmp(&ang(b))
-        });
-        let area: f64 = (0..ordered.len())
-            .map(|i| (ordered[i] - fc).cross(&(ordered[(i + 1) % ordered.len()] - fc)).dot(n) / 2.0)
-            .sum();
-        volume += area * (support - c.dot(n)) / 3.0;
-    }
-    volume
+    let c = piece.centroid().coords;
+    piece
+        .faces
+        .iter()
+        .map(|f| {
+            let p: Vec<Vector3<f64>> = f.iter().map(|&i| piece.vertices[i as usize].coords - c).collect();
+            (1..p.len() - 1)
+                .map(|k| p[0].dot(&p[k].cross(&p[k + 1])) / 6.0)
+                .sum::<f64>()
+        })
+        .sum()
 }
 
 fn pieces_volume(solid: &Solid) -> f64 {
@@ -146,6 +123,25 @@ fn exported_stls_are_watertight_and_keep_the_clearance() {
                 b.name(),
                 2.0 * gap_mm
             );
+        }
+    }
+}
+
+#[test]
+fn engine_colliders_keep_every_vertex_and_face() {
+    for b in Builtin::ALL {
+        for c in CLEARANCES_MM {
+            let pair = build_builtin(b, c * 1e-3).unwrap();
+            for piece in pair.peg.pieces.iter().chain(&pair.hole.pieces) {
+                let centre = piece.centroid();
+                let shape = parry3d::shape::ConvexPolyhedron::from_convex_mesh(
+                    piece.points_f32_about(&centre),
+                    &piece.triangles(),
+                )
+                .expect("collider builds");
+                assert_eq!(shape.points().len(), piece.vertices.len(), "{} at {c} mm", b.name());
+                assert_eq!(shape.faces().len(), piece.faces.len(), "{} at {c} mm", b.name());
+            }
         }
     }
 }

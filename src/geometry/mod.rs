@@ -11,7 +11,7 @@ pub mod profile;
 pub mod solid;
 
 use crate::error::{Error, Result};
-use planar::{P2, Region, difference, offset_left, rect, union};
+use planar::{P2, Region, difference, offset_left, rect, simplify_ring, union};
 pub use profile::Builtin;
 use solid::{ConvexPiece, Solid, ZPlane, prisms};
 
@@ -91,8 +91,17 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
     let tol = chord_tolerance(clearance_m);
     let half_gap = clearance_m / 2.0;
     let d_max = half_gap + HOLE_ENTRY_CHAMFER_M;
-    let peg_profile = union(&builtin.pieces(0.0, tol, d_max));
-    let cavity = union(&builtin.pieces(half_gap, tol, d_max));
+    let simplified = |regions: Vec<Region>| -> Vec<Region> {
+        regions
+            .into_iter()
+            .map(|r| Region {
+                outer: simplify_ring(&r.outer, tol),
+                holes: r.holes.iter().map(|h| simplify_ring(h, tol)).collect(),
+            })
+            .collect()
+    };
+    let peg_profile = simplified(union(&builtin.pieces(0.0, tol, d_max)));
+    let cavity = simplified(union(&builtin.pieces(half_gap, tol, d_max)));
     let peg = build_peg(&peg_profile).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
     let (hole, cavity_rings) =
         build_hole(&cavity).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
@@ -108,11 +117,12 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
     })
 }
 
-/// Width of the wall strips that carry the chamfers, as a multiple of the chamfer.
-const STRIP_WIDTH_FACTOR: f64 = 2.0;
+/// Widths of the wall strips that carry the chamfers, as multiples of the chamfer, widest first:
+/// each ring takes the widest that no edge of it collapses at.
+const STRIP_WIDTH_FACTORS: [f64; 4] = [2.0, 1.5, 1.2, 1.0];
 
-/// The chamfered edges of a region. Along each chamfered ring, a wall strip of width
-/// `STRIP_WIDTH_FACTOR` x chamfer runs from each edge to its mitred offset into the material,
+/// The chamfered edges of a region. Along each chamfered ring, a wall strip (see
+/// `STRIP_WIDTH_FACTORS`) runs from each edge to its mitred offset into the material,
 /// bounded by the corner bisectors (the straight skeleton, so neighbouring strips meet exactly);
 /// each strip is one convex piece with the 45-degree bevel cut on its edge. The rest of the
 /// region (the core) is decomposed into plain prisms. Chunky strips instead of separate bevel
@@ -126,18 +136,20 @@ struct Skirt {
 }
 
 fn skirt(material: &[Region], rings: &[Vec<P2>], chamfer: f64) -> std::result::Result<Skirt, String> {
-    let width = STRIP_WIDTH_FACTOR * chamfer;
     let mut strips = Vec::new();
     let mut chamfer_rings = Vec::new();
-    let collapse = |w: f64| {
-        format!(
-            "a {} mm wall strip collapses an edge of the profile; use a smaller chamfer",
-            w * 1e3
-        )
-    };
     for ring in rings {
-        let c = offset_left(ring, chamfer).ok_or_else(|| collapse(chamfer))?;
-        let w = offset_left(ring, width).ok_or_else(|| collapse(width))?;
+        let collapse = || {
+            format!(
+                "a {} mm chamfer collapses an edge of the profile; use a smaller chamfer",
+                chamfer * 1e3
+            )
+        };
+        let c = offset_left(ring, chamfer).ok_or_else(collapse)?;
+        let w = STRIP_WIDTH_FACTORS
+            .iter()
+            .find_map(|f| offset_left(ring, f * chamfer))
+            .ok_or_else(collapse)?;
         let n = ring.len();
         for i in 0..n {
             let j = (i + 1) % n;
@@ -153,14 +165,35 @@ fn skirt(material: &[Region], rings: &[Vec<P2>], chamfer: f64) -> std::result::R
     })
 }
 
-/// A strip piece: the edge at `z_edge`, the chamfer line and the strip's inner line at `z_face`
-/// (the end face, tip or mouth), and all of them at `z_far` (the other end).
-fn strip_piece(s: &[P2; 6], z_edge: f64, z_face: f64, z_far: f64) -> Option<ConvexPiece> {
+/// A strip piece: the ring edge at height `z_edge`, the chamfer line and the strip's inner line
+/// at `z_face` (the tip or the mouth), the bevel between them, and the edge and inner line again at
+/// `z_far` (the other end), with its exact faces.
+fn strip_piece(s: &[P2; 6], z_edge: f64, z_face: f64, z_far: f64) -> ConvexPiece {
+    let [vi, vj, ci, cj, wi, wj] = *s;
     let at = |p: P2, z: f64| solid::P3::new(p.x, p.y, z);
-    let mut pts = vec![at(s[0], z_edge), at(s[1], z_edge)];
-    pts.extend(s[2..].iter().map(|&p| at(p, z_face)));
-    pts.extend(s.iter().map(|&p| at(p, z_far)));
-    ConvexPiece::from_points(&pts)
+    // 0 vi, 1 vj at the edge; 2 ci, 3 cj, 4 wi, 5 wj at the face; 6 vi, 7 vj, 8 wi, 9 wj far.
+    let vertices = vec![
+        at(vi, z_edge),
+        at(vj, z_edge),
+        at(ci, z_face),
+        at(cj, z_face),
+        at(wi, z_face),
+        at(wj, z_face),
+        at(vi, z_far),
+        at(vj, z_far),
+        at(wi, z_far),
+        at(wj, z_far),
+    ];
+    let faces = vec![
+        vec![0, 1, 3, 2],       // bevel
+        vec![2, 3, 5, 4],       // flat end face
+        vec![6, 7, 9, 8],       // far end
+        vec![0, 1, 7, 6],       // the ring edge's wall
+        vec![4, 5, 9, 8],       // the inner wall
+        vec![1, 3, 5, 9, 7],    // side along the bisector at j
+        vec![0, 2, 4, 8, 6],    // side along the bisector at i
+    ];
+    ConvexPiece::from_faces(vertices, faces)
 }
 
 /// The peg: pin(s) with a chamfered tip, and the body block on top.
@@ -169,7 +202,7 @@ fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
     let rings: Vec<Vec<P2>> = profile.iter().flat_map(|r| r.rings().cloned()).collect();
     let sk = skirt(profile, &rings, ch)?;
     let mut pieces = prisms(&sk.core, ZPlane::flat(0.0), ZPlane::flat(PIN_LENGTH_M));
-    pieces.extend(sk.strips.iter().filter_map(|s| strip_piece(s, ch, 0.0, PIN_LENGTH_M)));
+    pieces.extend(sk.strips.iter().map(|s| strip_piece(s, ch, 0.0, PIN_LENGTH_M)));
     let half = BODY_SIZE_M / 2.0;
     let body = rect(-half, -half, half, half);
     let top = PIN_LENGTH_M + BODY_HEIGHT_M;
@@ -237,7 +270,7 @@ fn build_hole(cavity: &[Region]) -> std::result::Result<(Solid, Vec<Vec<P2>>), S
     let floor = -CAVITY_DEPTH_M;
     let bottom = floor - FLOOR_THICKNESS_M;
     let mut pieces = prisms(&sk.core, ZPlane::flat(floor), ZPlane::flat(0.0));
-    pieces.extend(sk.strips.iter().filter_map(|s| strip_piece(s, -ch, 0.0, floor)));
+    pieces.extend(sk.strips.iter().map(|s| strip_piece(s, -ch, 0.0, floor)));
     pieces.push(ConvexPiece::slab(
         &square,
         ZPlane::flat(bottom),

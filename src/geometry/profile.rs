@@ -7,7 +7,7 @@
 //! parallel curve. The hole cavity is the profile offset by half the clearance (ISO fits: the
 //! clearance is diametral).
 
-use super::planar::{P2, circle, circle_through, convex_hull, polygonise, rect, sides_for_circle};
+use super::planar::{P2, circle, circle_through, convex_hull, rect, sides_for_circle};
 use serde::Serialize;
 
 /// Millimetres to metres.
@@ -243,14 +243,18 @@ fn gear(d: f64, tol: f64) -> Vec<Vec<P2>> {
     // of the involute below that point, and chamfers do not meet the involute's cusp), then the
     // involute flank, then the tip arc.
     let mut half = vec![P2::origin() + radial_dir * rho_start + side * d];
-    half.extend(polygonise(
-        &|rho| polar(rho, flank_angle(rho)),
-        rho_involute,
-        r_tip,
-        tol,
-    ));
+    // The involute in its roll angle t (radius r_base sqrt(1 + t^2)): equal steps in t turn the
+    // flank by equal angles, and the chord error r_base t dt^2 / 8 is largest at the tip.
+    let roll = |rho: f64| ((rho / r_base).powi(2) - 1.0).sqrt();
+    let (t0, t1) = (roll(rho_involute), roll(r_tip));
+    let steps = ((t1 - t0) / (8.0 * tol / (r_base * t1)).sqrt()).ceil().max(1.0) as usize;
+    half.extend((0..=steps).map(|k| {
+        let t = t0 + (t1 - t0) * k as f64 / steps as f64;
+        polar(r_base * (1.0 + t * t).sqrt(), psi_base - (t - t.atan()))
+    }));
     let tip_half = flank_angle(r_tip);
-    half.extend(polygonise(&|a| polar(r_tip, a), tip_half, 0.0, tol));
+    let tip_steps = (tip_half / (2.0 * (1.0 - tol / r_tip).acos())).ceil().max(1.0) as usize;
+    half.extend((1..=tip_steps).map(|k| polar(r_tip, tip_half * (1.0 - k as f64 / tip_steps as f64))));
     // Where the first flank segment crosses the root circle: the root circle gets a vertex there.
     let (a, b) = (half[0], half[1]);
     let dir = b - a;

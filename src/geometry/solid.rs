@@ -25,68 +25,100 @@ impl ZPlane {
     }
 }
 
-/// One convex piece in f64, with the data an exact separating-axis test needs: vertices, outward
-/// face normals and edge directions (all unit vectors).
+/// One convex piece in f64: vertices, and faces as outward counter-clockwise polygons, with the
+/// data an exact separating-axis test needs (outward unit face normals, unit edge directions).
+/// Pieces pegtwin builds carry their exact topology; the engine's collider is made from it as is
+/// (`SharedShape::convex_mesh`) rather than re-derived by a convex hull, whose tolerances drop
+/// vertices of long thin pieces.
 #[derive(Clone, Debug)]
 pub struct ConvexPiece {
     pub vertices: Vec<P3>,
+    pub faces: Vec<Vec<u32>>,
     pub face_normals: Vec<Vector3<f64>>,
     pub edge_dirs: Vec<Vector3<f64>>,
 }
 
 impl ConvexPiece {
-    /// The part of the vertical prism over a convex counter-clockwise `footprint` between two
-    /// planes (`lower` below `upper` everywhere on the footprint, possibly touching along an edge).
-    pub fn slab(footprint: &[P2], lower: ZPlane, upper: ZPlane) -> Self {
-        let mut vertices = Vec::with_capacity(footprint.len() * 2);
-        for &p in footprint {
-            let (zl, zu) = (lower.z(p), upper.z(p));
-            vertices.push(P3::new(p.x, p.y, zl));
-            if zu - zl > 1e-12 {
-                vertices.push(P3::new(p.x, p.y, zu));
+    /// A piece from its vertices and face polygons (any orientation: each face is turned to face
+    /// away from the centroid).
+    pub fn from_faces(vertices: Vec<P3>, faces: Vec<Vec<u32>>) -> Self {
+        let centre = centroid(&vertices);
+        let mut faces = faces;
+        let mut face_normals = Vec::with_capacity(faces.len());
+        let mut edge_dirs = Vec::new();
+        for face in &mut faces {
+            let pts: Vec<P3> = face.iter().map(|&i| vertices[i as usize]).collect();
+            let mut n = newell_normal(&pts);
+            let fc = centroid(&pts);
+            if n.dot(&(fc - centre)) < 0.0 {
+                face.reverse();
+                n = -n;
             }
-        }
-        let mut face_normals = vec![
-            Vector3::new(lower.a, lower.b, -1.0).normalize(),
-            Vector3::new(-upper.a, -upper.b, 1.0).normalize(),
-        ];
-        let mut edge_dirs = vec![Vector3::z()];
-        let n = footprint.len();
-        for i in 0..n {
-            let d = footprint[(i + 1) % n] - footprint[i];
-            face_normals.push(Vector3::new(d.y, -d.x, 0.0).normalize());
-            for plane in [lower, upper] {
-                edge_dirs.push(Vector3::new(d.x, d.y, plane.a * d.x + plane.b * d.y).normalize());
+            face_normals.push(n);
+            for k in 0..pts.len() {
+                let d = pts[(k + 1) % pts.len()] - pts[k];
+                if d.norm() > 0.0 {
+                    edge_dirs.push(d.normalize());
+                }
             }
         }
         ConvexPiece {
             vertices,
+            faces,
             face_normals,
             edge_dirs,
         }
     }
 
-    /// A convex piece from its points (the convex hull is taken). `None` if they span no volume.
-    pub fn from_points(points: &[P3]) -> Option<Self> {
-        let pts: Vec<parry3d::math::Vector> = points
-            .iter()
-            .map(|p| parry3d::math::Vector::new(p.x as f32, p.y as f32, p.z as f32))
-            .collect();
-        let hull = ConvexPolyhedron::from_convex_hull(&pts)?;
-        let v3 = |v: parry3d::math::Vector| Vector3::new(v.x as f64, v.y as f64, v.z as f64);
-        Some(ConvexPiece {
-            vertices: hull.points().iter().map(|&p| P3::from(v3(p))).collect(),
-            face_normals: hull.faces().iter().map(|f| v3(f.normal).normalize()).collect(),
-            edge_dirs: hull.edges().iter().map(|e| v3(e.dir).normalize()).collect(),
-        })
+    /// The vertical prism over a convex counter-clockwise `footprint` between two planes
+    /// (`lower` strictly below `upper` on the footprint).
+    pub fn slab(footprint: &[P2], lower: ZPlane, upper: ZPlane) -> Self {
+        let n = footprint.len() as u32;
+        let mut vertices: Vec<P3> = footprint.iter().map(|&p| P3::new(p.x, p.y, lower.z(p))).collect();
+        vertices.extend(footprint.iter().map(|&p| P3::new(p.x, p.y, upper.z(p))));
+        let mut faces = vec![(0..n).collect::<Vec<u32>>(), (n..2 * n).collect()];
+        faces.extend((0..n).map(|i| vec![i, (i + 1) % n, n + (i + 1) % n, n + i]));
+        Self::from_faces(vertices, faces)
     }
 
-    /// The vertices as f32 points for a rapier collider.
-    pub fn points_f32(&self) -> Vec<parry3d::math::Vector> {
-        self.vertices
+    /// A convex piece from its points (the convex hull is taken, as for mesh files). `None` if
+    /// they span no volume.
+    pub fn from_points(points: &[P3]) -> Option<Self> {
+        let centre = centroid(points);
+        let hull = ConvexPolyhedron::from_convex_hull(&local_f32(points, &centre))?;
+        let vertices: Vec<P3> = hull
+            .points()
             .iter()
-            .map(|p| parry3d::math::Vector::new(p.x as f32, p.y as f32, p.z as f32))
+            .map(|p| P3::new(p.x as f64, p.y as f64, p.z as f64) + centre.coords)
+            .collect();
+        let faces = hull
+            .faces()
+            .iter()
+            .map(|f| {
+                let first = f.first_vertex_or_edge as usize;
+                hull.vertices_adj_to_face()[first..first + f.num_vertices_or_edges as usize].to_vec()
+            })
+            .collect();
+        Some(Self::from_faces(vertices, faces))
+    }
+
+    /// The faces as triangles (fans), outward.
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        self.faces
+            .iter()
+            .flat_map(|f| (1..f.len() - 1).map(move |k| [f[0], f[k], f[k + 1]]))
             .collect()
+    }
+
+    /// The centroid of the vertices.
+    pub fn centroid(&self) -> P3 {
+        centroid(&self.vertices)
+    }
+
+    /// The vertices relative to `centre`, as f32 points for a collider placed at `centre` (f32
+    /// keeps its precision about the piece's own centroid).
+    pub fn points_f32_about(&self, centre: &P3) -> Vec<parry3d::math::Vector> {
+        local_f32(&self.vertices, centre)
     }
 
     /// Axis-aligned bounds (min, max).
@@ -99,6 +131,34 @@ impl ConvexPiece {
         }
         (lo, hi)
     }
+}
+
+/// Unit normal of a planar polygon by Newell's method (counter-clockwise gives the outward side).
+fn newell_normal(pts: &[P3]) -> Vector3<f64> {
+    let mut n = Vector3::zeros();
+    for k in 0..pts.len() {
+        let (a, b) = (pts[k], pts[(k + 1) % pts.len()]);
+        n += Vector3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    n.normalize()
+}
+
+fn centroid(points: &[P3]) -> P3 {
+    P3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len().max(1) as f64)
+}
+
+fn local_f32(points: &[P3], centre: &P3) -> Vec<parry3d::math::Vector> {
+    points
+        .iter()
+        .map(|p| {
+            let q = p - centre;
+            parry3d::math::Vector::new(q.x as f32, q.y as f32, q.z as f32)
+        })
+        .collect()
 }
 
 /// A watertight triangle mesh: outward-facing, counter-clockwise triangles, metres.

@@ -203,6 +203,11 @@ enum Axis {
     Edges(usize, usize),
 }
 
+/// Cosine of the largest normal rotation (0.1 deg) for which contact points are kept.
+const COHERENCE_COS: Real = 0.999_998_5;
+/// Square of the largest sliding (1 micrometre) for which contact points are kept, m^2.
+const COHERENCE_DIST_SQ: Real = 1e-12;
+
 /// Faces win over edges unless the edge axis separates more by this much (metres): keeps the
 /// manifold from flickering between a face and an edge of a resting face contact.
 const EDGE_TOLERANCE: Real = 1e-7;
@@ -214,6 +219,11 @@ fn sat_manifold<M, C: Default + Copy>(
     prediction: Real,
     manifold: &mut ContactManifold<M, C>,
 ) {
+    // A pair at rest keeps its contact points: only their separations are refreshed, while no
+    // point has slid by more than a micrometre and the normal has turned by less than 0.1 deg.
+    if manifold.try_update_contacts_eps(pos12, COHERENCE_COS, COHERENCE_DIST_SQ) {
+        return;
+    }
     // The cached axis first: a pair that stays apart costs two support scans.
     let cached = manifold.local_n1;
     if cached.length_squared() > 0.5 && separation(a, b, pos12, cached) > prediction {
@@ -223,57 +233,70 @@ fn sat_manifold<M, C: Default + Copy>(
     let old_points = manifold.points.clone();
     manifold.clear();
 
-    let mut best_face = (Real::MIN, Axis::FaceA(0), Vector::ZERO);
+    // B in A's frame, once.
+    let pb: Vec<Vector> = b.points().iter().map(|&p| *pos12 * p).collect();
+    let nb: Vec<Vector> = b.faces().iter().map(|f| pos12.rotation * f.normal).collect();
+    let pa = a.points();
+    let vertex_of_face = |p: &ConvexPolyhedron, f: usize| {
+        p.vertices_adj_to_face()[p.faces()[f].first_vertex_or_edge as usize] as usize
+    };
+
+    // Face normals of A: separation = min over B along n minus A's face plane.
+    let mut best = (Real::MIN, Axis::FaceA(0), Vector::ZERO);
     for (i, f) in a.faces().iter().enumerate() {
-        let s = separation(a, b, pos12, f.normal);
-        if s > prediction {
-            manifold.local_n1 = f.normal;
-            return;
-        }
-        if s > best_face.0 {
-            best_face = (s, Axis::FaceA(i), f.normal);
-        }
-    }
-    for (i, f) in b.faces().iter().enumerate() {
-        let n = -(pos12.rotation * f.normal);
-        let s = separation(a, b, pos12, n);
+        let n = f.normal;
+        let plane = n.dot(pa[vertex_of_face(a, i)]);
+        let s = pb.iter().fold(Real::MAX, |m, p| m.min(n.dot(*p))) - plane;
         if s > prediction {
             manifold.local_n1 = n;
             return;
         }
-        // Prefer A's faces when both are as good.
-        if s > best_face.0 + EDGE_TOLERANCE * 0.1 {
-            best_face = (s, Axis::FaceB(i), n);
+        if s > best.0 {
+            best = (s, Axis::FaceA(i), n);
         }
     }
-    let mut best = best_face;
-    let centroid_a = a.points().iter().copied().sum::<Vector>() / a.points().len() as Real;
+    // Face normals of B (axis -m from A to B): separation = min over A along m minus B's plane.
+    for (i, m) in nb.iter().enumerate() {
+        let plane = m.dot(pb[vertex_of_face(b, i)]);
+        let s = pa.iter().fold(Real::MAX, |acc, p| acc.min(m.dot(*p))) - plane;
+        if s > prediction {
+            manifold.local_n1 = -*m;
+            return;
+        }
+        // Prefer A's faces when both are as good.
+        if s > best.0 + EDGE_TOLERANCE * 0.1 {
+            best = (s, Axis::FaceB(i), -*m);
+        }
+    }
+    // Edge pairs that make a face of the Minkowski difference.
+    let centroid_a = pa.iter().copied().sum::<Vector>() / pa.len() as Real;
+    let face_limit = best.0;
     for (ia, ea) in a.edges().iter().enumerate() {
-        let (fa1, fa2) = (a.faces()[ea.faces[0] as usize].normal, a.faces()[ea.faces[1] as usize].normal);
-        let pa = a.points()[ea.vertices[0] as usize];
+        let (fa1, fa2) = (
+            a.faces()[ea.faces[0] as usize].normal,
+            a.faces()[ea.faces[1] as usize].normal,
+        );
+        let p_a = pa[ea.vertices[0] as usize];
         for (ib, eb) in b.edges().iter().enumerate() {
-            let fb1 = -(pos12.rotation * b.faces()[eb.faces[0] as usize].normal);
-            let fb2 = -(pos12.rotation * b.faces()[eb.faces[1] as usize].normal);
+            let (fb1, fb2) = (-nb[eb.faces[0] as usize], -nb[eb.faces[1] as usize]);
             if !is_minkowski_face(fa1, fa2, fb1, fb2) {
                 continue;
             }
-            let dir_b = pos12.rotation * eb.dir;
-            let axis = ea.dir.cross(dir_b);
+            let axis = ea.dir.cross(pos12.rotation * eb.dir);
             let len = axis.length();
             if len < 1e-5 {
                 continue;
             }
             let mut axis = axis / len;
-            if axis.dot(pa - centroid_a) < 0.0 {
+            if axis.dot(p_a - centroid_a) < 0.0 {
                 axis = -axis;
             }
-            let pb = *pos12 * b.points()[eb.vertices[0] as usize];
-            let s = axis.dot(pb - pa);
+            let s = axis.dot(pb[eb.vertices[0] as usize] - p_a);
             if s > prediction {
                 manifold.local_n1 = axis;
                 return;
             }
-            if s > best.0 + EDGE_TOLERANCE {
+            if s > best.0.max(face_limit + EDGE_TOLERANCE) {
                 best = (s, Axis::Edges(ia, ib), axis);
             }
         }

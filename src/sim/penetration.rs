@@ -43,6 +43,7 @@ fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
 fn transformed(piece: &ConvexPiece, iso: &Isometry3<f64>) -> ConvexPiece {
     ConvexPiece {
         vertices: piece.vertices.iter().map(|p| iso * p).collect(),
+        faces: piece.faces.clone(),
         face_normals: piece.face_normals.iter().map(|n| iso * n).collect(),
         edge_dirs: piece.edge_dirs.iter().map(|e| iso * e).collect(),
     }
