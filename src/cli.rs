@@ -45,6 +45,9 @@ pub enum GeometryAction {
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
+        /// Also write each convex collision piece as its own STL (peg_parts/, hole_parts/).
+        #[arg(long)]
+        convex_parts: bool,
     },
 }
 
@@ -177,9 +180,10 @@ fn geometry_command(action: GeometryAction) -> Result<i32> {
             name,
             clearance_mm,
             out,
+            convex_parts,
         } => {
             let pair = geometry::build_builtin(geometry::builtin_by_name(&name)?, clearance_mm * 1e-3)?;
-            geometry::export_stl(&pair, &out)?;
+            geometry::export_stl(&pair, &out, convex_parts)?;
             println!(
                 "wrote {} and {} (mm; clearance {} mm, chord error at most {:.4} mm)",
                 out.join("peg.stl").display(),

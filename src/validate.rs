@@ -285,7 +285,7 @@ fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec
                 "resting on the rim {:.1} mm off the axis, pushed 5 mm down: jams, no entry (tip stays above -0.05 mm)",
                 rim_offset * 1e3
             ),
-            start: upright(rim_offset, 0.0, 1e-3),
+            start: lift_until_free(probe, pair, upright(rim_offset, 0.0, 0.0)),
             target: Box::new(move |_| Vector3::new(rim_offset, 0.0, -5e-3)),
             duration_s: 1.0,
             judge: Box::new(|tip, min_z, _| {

@@ -96,7 +96,7 @@ fn exported_stls_are_watertight_and_keep_the_clearance() {
         for c in CLEARANCES_MM {
             let pair = build_builtin(b, c * 1e-3).unwrap();
             let out = dir.path().join(format!("{}-{c}", b.name()));
-            pegtwin::geometry::export_stl(&pair, &out).unwrap();
+            pegtwin::geometry::export_stl(&pair, &out, false).unwrap();
             let peg = read_stl(&out.join("peg.stl"));
             let hole = read_stl(&out.join("hole.stl"));
             assert!(watertight(&peg) && watertight(&hole), "{} at {c} mm", b.name());

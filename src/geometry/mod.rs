@@ -13,7 +13,7 @@ pub mod solid;
 use crate::error::{Error, Result};
 use planar::{P2, Region, difference, offset_left, rect, simplify_ring, union};
 pub use profile::Builtin;
-use solid::{ConvexPiece, Solid, ZPlane, prisms};
+use solid::{BoundaryMesh, ConvexPiece, Solid, ZPlane, prisms};
 
 /// Length of the peg's engagement part (tip to body), metres.
 pub const PIN_LENGTH_M: f64 = 32e-3;
@@ -313,19 +313,32 @@ fn build_hole(cavity: &[Region]) -> std::result::Result<(Solid, Vec<Vec<P2>>), S
     ))
 }
 
-/// Writes `peg.stl` and `hole.stl` (millimetres, watertight) into `dir`, creating it. Files are
-/// written to temporary names and renamed, so a failure leaves no half-written STL.
-pub fn export_stl(pair: &PartPair, dir: &std::path::Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, format!("cannot create: {e}")))?;
-    for (name, solid) in [("peg.stl", &pair.peg), ("hole.stl", &pair.hole)] {
+/// Writes `peg.stl` and `hole.stl` (millimetres, watertight) into `dir`, creating it, and with
+/// `convex_parts` also `peg_parts/` and `hole_parts/`: one STL per convex collision piece, the
+/// layout MuJoCo users keep from CoACD or V-HACD. Files are written to temporary names and
+/// renamed, so a failure leaves no half-written STL.
+pub fn export_stl(pair: &PartPair, dir: &std::path::Path, convex_parts: bool) -> Result<()> {
+    let write = |mesh: &BoundaryMesh, dest: std::path::PathBuf| -> Result<()> {
+        let tmp = dest.with_extension("stl.partial");
+        mesh.write_stl_mm(&tmp)?;
+        std::fs::rename(&tmp, &dest).map_err(|e| Error::file(&dest, format!("cannot write: {e}")))
+    };
+    let mkdir = |d: &std::path::Path| {
+        std::fs::create_dir_all(d).map_err(|e| Error::file(d, format!("cannot create: {e}")))
+    };
+    mkdir(dir)?;
+    for (name, solid) in [("peg", &pair.peg), ("hole", &pair.hole)] {
         let mesh = solid.boundary.as_ref().ok_or_else(|| {
             Error::Input(format!("{}: only built-in geometries can be exported", pair.name))
         })?;
-        let tmp = dir.join(format!(".{name}.partial"));
-        mesh.write_stl_mm(&tmp)?;
-        let dest = dir.join(name);
-        std::fs::rename(&tmp, &dest)
-            .map_err(|e| Error::file(&dest, format!("cannot write: {e}")))?;
+        write(mesh, dir.join(format!("{name}.stl")))?;
+        if convex_parts {
+            let parts = dir.join(format!("{name}_parts"));
+            mkdir(&parts)?;
+            for (k, piece) in solid.pieces.iter().enumerate() {
+                write(&piece.to_mesh(), parts.join(format!("{k:04}.stl")))?;
+            }
+        }
     }
     Ok(())
 }

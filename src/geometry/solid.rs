@@ -110,6 +110,14 @@ impl ConvexPiece {
             .collect()
     }
 
+    /// The piece as a closed triangle mesh.
+    pub fn to_mesh(&self) -> BoundaryMesh {
+        BoundaryMesh {
+            vertices: self.vertices.clone(),
+            triangles: self.triangles(),
+        }
+    }
+
     /// The centroid of the vertices.
     pub fn centroid(&self) -> P3 {
         centroid(&self.vertices)

@@ -1,0 +1,77 @@
+//! The command line: outputs, files, exit codes and error messages.
+
+use std::process::{Command, Output};
+
+fn pegtwin(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pegtwin"))
+        .args(args)
+        .output()
+        .expect("pegtwin runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn geometry_list_names_the_five_built_ins() {
+    let o = pegtwin(&["geometry", "list", "--json"]);
+    assert!(o.status.success());
+    let list: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let names: Vec<&str> = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|g| g["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["cross", "extrusion", "plug3", "key", "gear"]);
+}
+
+#[test]
+fn geometry_export_writes_both_stls() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("gear");
+    let o = pegtwin(&[
+        "geometry",
+        "export",
+        "gear",
+        "--clearance-mm",
+        "0.3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.join("peg.stl").is_file() && out.join("hole.stl").is_file());
+}
+
+#[test]
+fn bad_values_exit_2_and_say_what_was_expected() {
+    let o = pegtwin(&["validate", "--geometry", "hexagon", "--clearance-mm", "0.1"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("hexagon") && stderr(&o).contains("cross"));
+    for bad in ["0", "-0.2", "5.5"] {
+        let o = pegtwin(&["geometry", "export", "cross", "--clearance-mm", bad, "--out", "x"]);
+        assert_eq!(o.status.code(), Some(2), "{bad}");
+        assert!(stderr(&o).contains("clearance"), "{}", stderr(&o));
+    }
+}
+
+#[test]
+fn a_garbage_mesh_exits_2_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let peg = dir.path().join("peg.stl");
+    std::fs::write(&peg, b"garbage").unwrap();
+    let o = pegtwin(&[
+        "validate",
+        "--peg-mesh",
+        peg.to_str().unwrap(),
+        "--hole-mesh",
+        peg.to_str().unwrap(),
+        "--depth-mm",
+        "30",
+        "--clearance-mm",
+        "0.2",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("peg.stl"), "{}", stderr(&o));
+}
