@@ -10,7 +10,11 @@ use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
 #[derive(Parser)]
-#[command(name = "pegtwin", version, about = "Digital twin for peg-in-hole assembly by contact-manifold pose estimation")]
+#[command(
+    name = "pegtwin",
+    version,
+    about = "Digital twin for peg-in-hole assembly by contact-manifold pose estimation"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -90,10 +94,12 @@ impl PairArgs {
         let clearance_m = self.clearance_mm * 1e-3;
         geometry::check_clearance(clearance_m)?;
         match (&self.geometry, &self.peg_mesh, &self.hole_mesh) {
-            (Some(name), _, _) => geometry::build_builtin(geometry::builtin_by_name(name)?, clearance_m),
+            (Some(name), _, _) => {
+                geometry::build_builtin(geometry::builtin_by_name(name)?, clearance_m)
+            }
             (None, Some(peg_path), Some(hole_path)) => {
                 let depth_mm = self.depth_mm.unwrap_or(f64::NAN);
-                if !(depth_mm > 0.0) {
+                if depth_mm.is_nan() || depth_mm <= 0.0 {
                     return Err(Error::Input(format!(
                         "--depth-mm {depth_mm}: expected the cavity depth of the mesh hole, more than 0 mm"
                     )));
@@ -130,7 +136,10 @@ pub fn run(cli: Cli) -> Result<i32> {
             let pair = args.pair.build()?;
             let report = validate(&pair, &PhysicsParams::default(), FreePegGains::default());
             if args.json {
-                println!("{}", serde_json::to_string_pretty(&report).expect("report serialises"));
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&report).expect("report serialises")
+                );
             } else {
                 print_validation(&report);
             }
@@ -153,7 +162,10 @@ fn geometry_command(action: GeometryAction) -> Result<i32> {
                 })
                 .collect();
             if json {
-                println!("{}", serde_json::to_string_pretty(&list).expect("list serialises"));
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&list).expect("list serialises")
+                );
             } else {
                 for b in Builtin::ALL {
                     println!("{:<10} {}", b.name(), b.description());
@@ -182,7 +194,8 @@ fn geometry_command(action: GeometryAction) -> Result<i32> {
             out,
             convex_parts,
         } => {
-            let pair = geometry::build_builtin(geometry::builtin_by_name(&name)?, clearance_mm * 1e-3)?;
+            let pair =
+                geometry::build_builtin(geometry::builtin_by_name(&name)?, clearance_mm * 1e-3)?;
             geometry::export_stl(&pair, &out, convex_parts)?;
             println!(
                 "wrote {} and {} (mm; clearance {} mm, chord error at most {:.4} mm)",
@@ -213,7 +226,17 @@ fn print_validation(r: &ValidationReport) {
             c.force_error_pct,
             c.steps_per_s
         );
-        println!("     expected: {}\n     observed: {}", c.expected, c.observed);
+        println!(
+            "     expected: {}\n     observed: {}",
+            c.expected, c.observed
+        );
     }
-    println!("{}", if r.passed { "all cases as expected" } else { "SOME CASES FAILED" });
+    println!(
+        "{}",
+        if r.passed {
+            "all cases as expected"
+        } else {
+            "SOME CASES FAILED"
+        }
+    );
 }

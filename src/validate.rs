@@ -74,7 +74,12 @@ impl FreePegRig {
         gains: FreePegGains,
     ) -> Self {
         let mut world = params.new_world();
-        add_fixed(&mut world, &pair.hole, &Isometry3::identity(), params.friction);
+        add_fixed(
+            &mut world,
+            &pair.hole,
+            &Isometry3::identity(),
+            params.friction,
+        );
         let (body, collider) = add_dynamic(
             &mut world,
             &pair.peg,
@@ -185,6 +190,10 @@ pub struct ValidationReport {
     pub passed: bool,
 }
 
+/// Judges a run from the final tip pose, the lowest tip z seen (m) and the settled contact force
+/// (N): whether the outcome is as expected, and what was observed.
+type Judge = Box<dyn Fn(&Isometry3<f64>, f64, &Vector3<f64>) -> (bool, String)>;
+
 /// How a case drives the peg and judges it.
 struct Case {
     name: &'static str,
@@ -194,8 +203,7 @@ struct Case {
     /// orientation to upright over `ORIENTATION_RAMP_S`, as a robot's filtered set-point would.
     target: Box<dyn Fn(f64) -> Vector3<f64>>,
     duration_s: f64,
-    /// Judges the run from the final tip pose and the lowest tip z seen.
-    judge: Box<dyn Fn(&Isometry3<f64>, f64, &Vector3<f64>) -> (bool, String)>,
+    judge: Judge,
 }
 
 fn upright(x: f64, y: f64, z: f64) -> Isometry3<f64> {
@@ -203,7 +211,11 @@ fn upright(x: f64, y: f64, z: f64) -> Isometry3<f64> {
 }
 
 /// Raises a start pose in 10 micrometre steps until the peg does not penetrate the hole.
-fn lift_until_free(probe: &PenetrationProbe, pair: &PartPair, pose: Isometry3<f64>) -> Isometry3<f64> {
+fn lift_until_free(
+    probe: &PenetrationProbe,
+    pair: &PartPair,
+    pose: Isometry3<f64>,
+) -> Isometry3<f64> {
     let mut p = pose;
     while probe.max_penetration(&pair.peg, &p) > 0.0 {
         p.translation.vector.z += 10e-6;
@@ -222,7 +234,11 @@ fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec
         let z = tip.translation.vector.z;
         (
             z <= -depth + 0.1e-3,
-            format!("tip at z = {:.3} mm (floor at {:.3} mm)", z * 1e3, -depth * 1e3),
+            format!(
+                "tip at z = {:.3} mm (floor at {:.3} mm)",
+                z * 1e3,
+                -depth * 1e3
+            ),
         )
     };
     let descend = move |z0: f64| -> Box<dyn Fn(f64) -> Vector3<f64>> {

@@ -50,7 +50,15 @@ fn bad_values_exit_2_and_say_what_was_expected() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("hexagon") && stderr(&o).contains("cross"));
     for bad in ["0", "-0.2", "5.5"] {
-        let o = pegtwin(&["geometry", "export", "cross", "--clearance-mm", bad, "--out", "x"]);
+        let o = pegtwin(&[
+            "geometry",
+            "export",
+            "cross",
+            "--clearance-mm",
+            bad,
+            "--out",
+            "x",
+        ]);
         assert_eq!(o.status.code(), Some(2), "{bad}");
         assert!(stderr(&o).contains("clearance"), "{}", stderr(&o));
     }

@@ -1,9 +1,9 @@
 //! Built-in geometry: exact decomposition, watertight exports, clearance as requested.
 
+use nalgebra::Vector3;
 use pegtwin::geometry::planar::{P2, distance_to_segment};
 use pegtwin::geometry::solid::{ConvexPiece, Solid};
 use pegtwin::geometry::{Builtin, build_builtin};
-use nalgebra::Vector3;
 use std::collections::HashMap;
 
 const CLEARANCES_MM: [f64; 4] = [0.1, 0.2, 0.5, 1.0];
@@ -15,7 +15,10 @@ fn piece_volume(piece: &ConvexPiece) -> f64 {
         .faces
         .iter()
         .map(|f| {
-            let p: Vec<Vector3<f64>> = f.iter().map(|&i| piece.vertices[i as usize].coords - c).collect();
+            let p: Vec<Vector3<f64>> = f
+                .iter()
+                .map(|&i| piece.vertices[i as usize].coords - c)
+                .collect();
             (1..p.len() - 1)
                 .map(|k| p[0].dot(&p[k].cross(&p[k + 1])) / 6.0)
                 .sum::<f64>()
@@ -34,7 +37,11 @@ fn convex_pieces_fill_exactly_the_watertight_boundary() {
             let pair = build_builtin(b, c * 1e-3).unwrap();
             for (what, solid) in [("peg", &pair.peg), ("hole", &pair.hole)] {
                 let mesh = solid.boundary.as_ref().unwrap();
-                assert!(mesh.is_watertight(), "{} {what} at {c} mm is not watertight", b.name());
+                assert!(
+                    mesh.is_watertight(),
+                    "{} {what} at {c} mm is not watertight",
+                    b.name()
+                );
                 let (vm, vp) = (mesh.volume(), pieces_volume(solid));
                 // Exact up to the boolean library's picometre snapping.
                 assert!(
@@ -54,7 +61,10 @@ fn ring_segments_at(mesh: &stl_io::IndexedMesh, z: f32, wall_below: bool) -> Vec
     // Only faces of the walls on one side of the ring (not caps), so that cap diagonals and the
     // peg body do not count.
     for f in mesh.faces.iter().filter(|f| {
-        !f.vertices.iter().all(|&i| at(i)) && f.vertices.iter().any(|&i| (mesh.vertices[i][2] < z - 1e-4) == wall_below && !at(i))
+        !f.vertices.iter().all(|&i| at(i))
+            && f.vertices
+                .iter()
+                .any(|&i| (mesh.vertices[i][2] < z - 1e-4) == wall_below && !at(i))
     }) {
         for k in 0..3 {
             let (a, b) = (f.vertices[k], f.vertices[(k + 1) % 3]);
@@ -83,10 +93,14 @@ fn watertight(mesh: &stl_io::IndexedMesh) -> bool {
     let mut count: HashMap<(usize, usize), i32> = HashMap::new();
     for f in &mesh.faces {
         for k in 0..3 {
-            *count.entry((f.vertices[k], f.vertices[(k + 1) % 3])).or_default() += 1;
+            *count
+                .entry((f.vertices[k], f.vertices[(k + 1) % 3]))
+                .or_default() += 1;
         }
     }
-    count.iter().all(|(&(a, b), &n)| n == 1 && count.get(&(b, a)) == Some(&1))
+    count
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && count.get(&(b, a)) == Some(&1))
 }
 
 #[test]
@@ -99,7 +113,11 @@ fn exported_stls_are_watertight_and_keep_the_clearance() {
             pegtwin::geometry::export_stl(&pair, &out, false).unwrap();
             let peg = read_stl(&out.join("peg.stl"));
             let hole = read_stl(&out.join("hole.stl"));
-            assert!(watertight(&peg) && watertight(&hole), "{} at {c} mm", b.name());
+            assert!(
+                watertight(&peg) && watertight(&hole),
+                "{} at {c} mm",
+                b.name()
+            );
             // Peg walls at the pin's top ring (z = 32 mm, peg frame) against the cavity walls at
             // the floor ring (z = -30 mm, hole frame): both are straight extrusions.
             let peg_ring = ring_segments_at(&peg, 32.0, true);
@@ -139,8 +157,18 @@ fn engine_colliders_keep_every_vertex_and_face() {
                     &piece.triangles(),
                 )
                 .expect("collider builds");
-                assert_eq!(shape.points().len(), piece.vertices.len(), "{} at {c} mm", b.name());
-                assert_eq!(shape.faces().len(), piece.faces.len(), "{} at {c} mm", b.name());
+                assert_eq!(
+                    shape.points().len(),
+                    piece.vertices.len(),
+                    "{} at {c} mm",
+                    b.name()
+                );
+                assert_eq!(
+                    shape.faces().len(),
+                    piece.faces.len(),
+                    "{} at {c} mm",
+                    b.name()
+                );
             }
         }
     }
@@ -151,6 +179,8 @@ fn bad_clearances_and_names_are_rejected() {
     assert!(build_builtin(Builtin::Cross, 0.0).is_err());
     assert!(build_builtin(Builtin::Cross, -1e-4).is_err());
     assert!(build_builtin(Builtin::Cross, 5.1e-3).is_err());
-    let err = pegtwin::geometry::builtin_by_name("hexagon").unwrap_err().to_string();
+    let err = pegtwin::geometry::builtin_by_name("hexagon")
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("hexagon") && err.contains("cross"), "{err}");
 }

@@ -27,12 +27,19 @@ fn a_single_non_convex_mesh_is_decomposed_and_its_deviation_reported() {
     let pair = build_builtin(Builtin::Cross, 1.0e-3).unwrap();
     export_stl(&pair, dir.path(), false).unwrap();
     let loaded = load_solid(&dir.path().join("peg.stl"), MeshUnits::Mm, 0.5e-3).unwrap();
-    assert!(loaded.solid.pieces.len() >= 3, "{} parts", loaded.solid.pieces.len());
+    assert!(
+        loaded.solid.pieces.len() >= 3,
+        "{} parts",
+        loaded.solid.pieces.len()
+    );
     assert!(loaded.max_deviation_m > 0.0);
     // At a 0.01 mm gap any decomposition error of a voxel-based method is too large: warned.
     let strict = load_solid(&dir.path().join("peg.stl"), MeshUnits::Mm, 0.005e-3).unwrap();
     assert!(
-        strict.warnings.iter().any(|w| w.contains("peg.stl") && w.contains("deviates")),
+        strict
+            .warnings
+            .iter()
+            .any(|w| w.contains("peg.stl") && w.contains("deviates")),
         "{:?}",
         strict.warnings
     );
@@ -48,7 +55,10 @@ fn a_non_convex_file_in_a_parts_folder_is_measured_and_named() {
     std::fs::copy(dir.path().join("peg.stl"), parts.join("whole_peg.stl")).unwrap();
     let loaded = load_solid(&parts, MeshUnits::Mm, 0.25e-3).unwrap();
     let w = loaded.warnings.join("\n");
-    assert!(w.contains("whole_peg.stl") && w.contains("not convex"), "{w}");
+    assert!(
+        w.contains("whole_peg.stl") && w.contains("not convex"),
+        "{w}"
+    );
     assert!(loaded.max_deviation_m > 1e-3, "{}", loaded.max_deviation_m);
 }
 
@@ -70,26 +80,48 @@ fn obj_files_and_metre_units_load() {
 fn bad_mesh_files_get_errors_that_name_them() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nope.stl");
-    let e = load_solid(&missing, MeshUnits::Mm, 1e-4).err().unwrap().to_string();
+    let e = load_solid(&missing, MeshUnits::Mm, 1e-4)
+        .err()
+        .unwrap()
+        .to_string();
     assert!(e.contains("nope.stl"), "{e}");
 
     let garbage = dir.path().join("garbage.stl");
-    std::fs::write(&garbage, b"this is not an stl file at all, just some text\n").unwrap();
-    let e = load_solid(&garbage, MeshUnits::Mm, 1e-4).err().unwrap().to_string();
+    std::fs::write(
+        &garbage,
+        b"this is not an stl file at all, just some text\n",
+    )
+    .unwrap();
+    let e = load_solid(&garbage, MeshUnits::Mm, 1e-4)
+        .err()
+        .unwrap()
+        .to_string();
     assert!(e.contains("garbage.stl"), "{e}");
 
     let empty = dir.path().join("empty.stl");
     std::fs::write(&empty, b"solid empty\nendsolid empty\n").unwrap();
-    let e = load_solid(&empty, MeshUnits::Mm, 1e-4).err().unwrap().to_string();
+    let e = load_solid(&empty, MeshUnits::Mm, 1e-4)
+        .err()
+        .unwrap()
+        .to_string();
     assert!(e.contains("empty.stl") && e.contains("no triangles"), "{e}");
 
     let text = dir.path().join("notes.txt");
     std::fs::write(&text, b"x").unwrap();
-    let e = load_solid(&text, MeshUnits::Mm, 1e-4).err().unwrap().to_string();
+    let e = load_solid(&text, MeshUnits::Mm, 1e-4)
+        .err()
+        .unwrap()
+        .to_string();
     assert!(e.contains("notes.txt") && e.contains(".stl or .obj"), "{e}");
 
     let empty_dir = dir.path().join("no_parts");
     std::fs::create_dir(&empty_dir).unwrap();
-    let e = load_solid(&empty_dir, MeshUnits::Mm, 1e-4).err().unwrap().to_string();
-    assert!(e.contains("no_parts") && e.contains("no .stl or .obj"), "{e}");
+    let e = load_solid(&empty_dir, MeshUnits::Mm, 1e-4)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("no_parts") && e.contains("no .stl or .obj"),
+        "{e}"
+    );
 }

@@ -90,7 +90,9 @@ impl BoundaryMesh {
             .map(|t| {
                 let [a, b, c] = t.map(|i| self.vertices[i as usize].coords * 1e3);
                 let n = (b - a).cross(&(c - a)).normalize();
-                let v = |p: nalgebra::Vector3<f64>| stl_io::Vertex::new([p.x as f32, p.y as f32, p.z as f32]);
+                let v = |p: nalgebra::Vector3<f64>| {
+                    stl_io::Vertex::new([p.x as f32, p.y as f32, p.z as f32])
+                };
                 stl_io::Triangle {
                     normal: stl_io::Normal::new([n.x as f32, n.y as f32, n.z as f32]),
                     vertices: [v(a), v(b), v(c)],
@@ -179,11 +181,7 @@ pub fn read_mesh(path: &Path, units: MeshUnits) -> Result<TriangleSoup> {
     if let Some(bad) = raw.iter().find(|v| v.iter().any(|c| !c.is_finite())) {
         return Err(Error::file(path, format!("vertex {bad:?} is not finite")));
     }
-    if triangles
-        .iter()
-        .flatten()
-        .any(|&i| i as usize >= raw.len())
-    {
+    if triangles.iter().flatten().any(|&i| i as usize >= raw.len()) {
         return Err(Error::file(path, "a triangle refers to a missing vertex"));
     }
     let s = units.scale();
@@ -232,7 +230,10 @@ fn piece_surface_samples(piece: &ConvexPiece) -> Vec<P3> {
             .filter(|p| (p.coords.dot(n) - support).abs() < 1e-7)
             .collect();
         if !on_face.is_empty() {
-            let c = on_face.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>()
+            let c = on_face
+                .iter()
+                .map(|p| p.coords)
+                .sum::<nalgebra::Vector3<f64>>()
                 / on_face.len() as f64;
             out.push(P3::from(c));
         }
@@ -252,7 +253,8 @@ pub struct LoadedSolid {
 /// output) or from one non-convex STL/OBJ file, which is decomposed with V-HACD. `half_gap_m` is
 /// half the stated clearance: a deviation above it draws a warning.
 pub fn load_solid(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<LoadedSolid> {
-    let meta = std::fs::metadata(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let meta =
+        std::fs::metadata(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
     if meta.is_dir() {
         load_convex_parts(path, units, half_gap_m)
     } else {
@@ -284,8 +286,9 @@ fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<Lo
     let mut max_dev: f64 = 0.0;
     for file in mesh_files(dir)? {
         let soup = read_mesh(&file, units)?;
-        let piece = ConvexPiece::from_points(&soup.vertices)
-            .ok_or_else(|| Error::file(&file, "the part is flat or degenerate: it has no volume"))?;
+        let piece = ConvexPiece::from_points(&soup.vertices).ok_or_else(|| {
+            Error::file(&file, "the part is flat or degenerate: it has no volume")
+        })?;
         let surface = trimesh(&soup, &file)?;
         let dev = max_distance_to_surface(piece_surface_samples(&piece).into_iter(), &surface);
         if dev > half_gap_m.min(1e-4) {
@@ -331,7 +334,10 @@ fn load_and_decompose(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<
         })
         .collect();
     if pieces.is_empty() {
-        return Err(Error::file(path, "the convex decomposition produced no part"));
+        return Err(Error::file(
+            path,
+            "the convex decomposition produced no part",
+        ));
     }
     let outward = max_distance_to_surface(pieces.iter().flat_map(piece_surface_samples), &surface);
     let inward = soup

@@ -102,7 +102,8 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
     };
     let peg_profile = simplified(union(&builtin.pieces(0.0, tol, d_max)));
     let cavity = simplified(union(&builtin.pieces(half_gap, tol, d_max)));
-    let peg = build_peg(&peg_profile).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
+    let peg =
+        build_peg(&peg_profile).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
     let (hole, cavity_rings) =
         build_hole(&cavity).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
     Ok(PartPair {
@@ -112,7 +113,10 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
         peg,
         hole,
         cavity_depth_m: CAVITY_DEPTH_M,
-        peg_rings: peg_profile.iter().flat_map(|r| r.rings().cloned()).collect(),
+        peg_rings: peg_profile
+            .iter()
+            .flat_map(|r| r.rings().cloned())
+            .collect(),
         cavity_rings,
     })
 }
@@ -135,7 +139,11 @@ struct Skirt {
     core: Vec<Region>,
 }
 
-fn skirt(material: &[Region], rings: &[Vec<P2>], chamfer: f64) -> std::result::Result<Skirt, String> {
+fn skirt(
+    material: &[Region],
+    rings: &[Vec<P2>],
+    chamfer: f64,
+) -> std::result::Result<Skirt, String> {
     let mut strips = Vec::new();
     let mut chamfer_rings = Vec::new();
     for ring in rings {
@@ -157,7 +165,10 @@ fn skirt(material: &[Region], rings: &[Vec<P2>], chamfer: f64) -> std::result::R
         }
         chamfer_rings.push(c);
     }
-    let quads: Vec<Vec<P2>> = strips.iter().map(|s| vec![s[0], s[1], s[5], s[4]]).collect();
+    let quads: Vec<Vec<P2>> = strips
+        .iter()
+        .map(|s| vec![s[0], s[1], s[5], s[4]])
+        .collect();
     Ok(Skirt {
         core: difference(material, &quads),
         strips,
@@ -185,13 +196,13 @@ fn strip_piece(s: &[P2; 6], z_edge: f64, z_face: f64, z_far: f64) -> ConvexPiece
         at(wj, z_far),
     ];
     let faces = vec![
-        vec![0, 1, 3, 2],       // bevel
-        vec![2, 3, 5, 4],       // flat end face
-        vec![6, 7, 9, 8],       // far end
-        vec![0, 1, 7, 6],       // the ring edge's wall
-        vec![4, 5, 9, 8],       // the inner wall
-        vec![1, 3, 5, 9, 7],    // side along the bisector at j
-        vec![0, 2, 4, 8, 6],    // side along the bisector at i
+        vec![0, 1, 3, 2],    // bevel
+        vec![2, 3, 5, 4],    // flat end face
+        vec![6, 7, 9, 8],    // far end
+        vec![0, 1, 7, 6],    // the ring edge's wall
+        vec![4, 5, 9, 8],    // the inner wall
+        vec![1, 3, 5, 9, 7], // side along the bisector at j
+        vec![0, 2, 4, 8, 6], // side along the bisector at i
     ];
     ConvexPiece::from_faces(vertices, faces)
 }
@@ -202,7 +213,11 @@ fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
     let rings: Vec<Vec<P2>> = profile.iter().flat_map(|r| r.rings().cloned()).collect();
     let sk = skirt(profile, &rings, ch)?;
     let mut pieces = prisms(&sk.core, ZPlane::flat(0.0), ZPlane::flat(PIN_LENGTH_M));
-    pieces.extend(sk.strips.iter().map(|s| strip_piece(s, ch, 0.0, PIN_LENGTH_M)));
+    pieces.extend(
+        sk.strips
+            .iter()
+            .map(|s| strip_piece(s, ch, 0.0, PIN_LENGTH_M)),
+    );
     let half = BODY_SIZE_M / 2.0;
     let body = rect(-half, -half, half, half);
     let top = PIN_LENGTH_M + BODY_HEIGHT_M;
@@ -329,7 +344,10 @@ pub fn export_stl(pair: &PartPair, dir: &std::path::Path, convex_parts: bool) ->
     mkdir(dir)?;
     for (name, solid) in [("peg", &pair.peg), ("hole", &pair.hole)] {
         let mesh = solid.boundary.as_ref().ok_or_else(|| {
-            Error::Input(format!("{}: only built-in geometries can be exported", pair.name))
+            Error::Input(format!(
+                "{}: only built-in geometries can be exported",
+                pair.name
+            ))
         })?;
         write(mesh, dir.join(format!("{name}.stl")))?;
         if convex_parts {

@@ -3,8 +3,8 @@
 //! merging). Every solid in pegtwin is an extrusion of these regions, so the 3-D pieces are exact.
 
 use geo::{
-    BooleanOps, Coord, unary_union, LineString, MultiPolygon, Polygon, TriangulateDelaunay,
-    triangulate_delaunay::DelaunayTriangulationConfig,
+    BooleanOps, Coord, LineString, MultiPolygon, Polygon, TriangulateDelaunay,
+    triangulate_delaunay::DelaunayTriangulationConfig, unary_union,
 };
 use nalgebra::{Point2, Vector2};
 use std::collections::HashMap;
@@ -126,7 +126,11 @@ pub fn circle_through(center: P2, radius: f64, through: &[f64], tol: f64) -> Vec
     }
     let mut out = Vec::new();
     for (k, &a0) in angles.iter().enumerate() {
-        let a1 = if k + 1 < angles.len() { angles[k + 1] } else { angles[0] + tau };
+        let a1 = if k + 1 < angles.len() {
+            angles[k + 1]
+        } else {
+            angles[0] + tau
+        };
         let n = ((a1 - a0) / max_step).ceil().max(1.0) as usize;
         let n = if angles.len() == 1 { n.max(8) } else { n };
         for i in 0..n {
@@ -193,11 +197,15 @@ fn from_geo_ring(ls: &LineString<f64>, ccw: bool) -> Vec<P2> {
     // sits on another polygon's edge: merge them so that no edge is shorter than a nanometre.
     let mut cleaned: Vec<P2> = Vec::with_capacity(ring.len());
     for p in ring {
-        if cleaned.last().is_none_or(|q: &P2| (p - q).norm() > MERGE_DISTANCE_M) {
+        if cleaned
+            .last()
+            .is_none_or(|q: &P2| (p - q).norm() > MERGE_DISTANCE_M)
+        {
             cleaned.push(p);
         }
     }
-    while cleaned.len() > 1 && (cleaned[0] - cleaned[cleaned.len() - 1]).norm() <= MERGE_DISTANCE_M {
+    while cleaned.len() > 1 && (cleaned[0] - cleaned[cleaned.len() - 1]).norm() <= MERGE_DISTANCE_M
+    {
         cleaned.pop();
     }
     let mut ring = cleaned;
@@ -211,7 +219,11 @@ fn from_geo(mp: &MultiPolygon<f64>) -> Vec<Region> {
     mp.0.iter()
         .map(|p| Region {
             outer: from_geo_ring(p.exterior(), true),
-            holes: p.interiors().iter().map(|h| from_geo_ring(h, false)).collect(),
+            holes: p
+                .interiors()
+                .iter()
+                .map(|h| from_geo_ring(h, false))
+                .collect(),
         })
         .collect()
 }
@@ -247,10 +259,12 @@ pub fn convex_decomposition(region: &Region) -> Vec<Vec<P2>> {
     let mut index: HashMap<(u64, u64), usize> = HashMap::new();
     let mut vertices: Vec<P2> = Vec::new();
     let mut id = |c: Coord<f64>| -> usize {
-        *index.entry((c.x.to_bits(), c.y.to_bits())).or_insert_with(|| {
-            vertices.push(P2::new(c.x, c.y));
-            vertices.len() - 1
-        })
+        *index
+            .entry((c.x.to_bits(), c.y.to_bits()))
+            .or_insert_with(|| {
+                vertices.push(P2::new(c.x, c.y));
+                vertices.len() - 1
+            })
     };
     let mut polys: Vec<Vec<usize>> = triangles
         .iter()
@@ -278,7 +292,11 @@ pub fn triangulate(region: &Region) -> Vec<[P2; 3]> {
         .map(|t| {
             let p = |c: Coord<f64>| P2::new(c.x, c.y);
             let (a, b, c) = (p(t.v1()), p(t.v2()), p(t.v3()));
-            if cross(b - a, c - a) < 0.0 { [a, c, b] } else { [a, b, c] }
+            if cross(b - a, c - a) < 0.0 {
+                [a, c, b]
+            } else {
+                [a, b, c]
+            }
         })
         .collect()
 }
@@ -336,7 +354,13 @@ fn hertel_mehlhorn(vertices: &[P2], polys: &mut Vec<Vec<usize>>) {
 }
 
 /// Joins `p` (with edge a->b) and `q` (with edge b->a) if the result is convex.
-fn merge_if_convex(vertices: &[P2], p: &[usize], q: &[usize], a: usize, b: usize) -> Option<Vec<usize>> {
+fn merge_if_convex(
+    vertices: &[P2],
+    p: &[usize],
+    q: &[usize],
+    a: usize,
+    b: usize,
+) -> Option<Vec<usize>> {
     let pa = p.iter().position(|&v| v == a)?;
     let qb = q.iter().position(|&v| v == b)?;
     // Walk p from b around to a, then q from a (after b->a) around to b (exclusive ends).
@@ -429,9 +453,17 @@ mod tests {
         let pieces = convex_decomposition(&region);
         let area: f64 = pieces.iter().map(|p| signed_area(p)).sum();
         assert!((area - 3.0).abs() < 1e-12, "area {area}");
-        assert!(pieces.len() >= 4 && pieces.len() <= 8, "{} pieces", pieces.len());
+        assert!(
+            pieces.len() >= 4 && pieces.len() <= 8,
+            "{} pieces",
+            pieces.len()
+        );
         for p in &pieces {
-            assert_eq!(convex_hull(p).len(), p.len(), "piece not strictly convex: {p:?}");
+            assert_eq!(
+                convex_hull(p).len(),
+                p.len(),
+                "piece not strictly convex: {p:?}"
+            );
         }
     }
 
@@ -440,7 +472,10 @@ mod tests {
         let sq = rect(0.0, 0.0, 1.0, 1.0);
         let inner = offset_left(&sq, 0.1).unwrap();
         assert!((signed_area(&inner) - 0.64).abs() < 1e-12);
-        assert!(offset_left(&sq, 0.6).is_none(), "an edge event must be reported");
+        assert!(
+            offset_left(&sq, 0.6).is_none(),
+            "an edge event must be reported"
+        );
     }
 
     #[test]

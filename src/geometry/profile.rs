@@ -194,7 +194,12 @@ fn key(d: f64, tol: f64) -> Vec<Vec<P2>> {
     let crossing = (r * r - half_w * half_w).sqrt().atan2(half_w);
     let key_bottom = KEY_SHAFT_DIA / 2.0 - KEY_SHAFT_DEPTH;
     vec![
-        circle_through(P2::origin(), r, &[crossing, std::f64::consts::PI - crossing], tol),
+        circle_through(
+            P2::origin(),
+            r,
+            &[crossing, std::f64::consts::PI - crossing],
+            tol,
+        ),
         grown(
             -KEY_WIDTH / 2.0,
             key_bottom,
@@ -247,14 +252,20 @@ fn gear(d: f64, tol: f64) -> Vec<Vec<P2>> {
     // flank by equal angles, and the chord error r_base t dt^2 / 8 is largest at the tip.
     let roll = |rho: f64| ((rho / r_base).powi(2) - 1.0).sqrt();
     let (t0, t1) = (roll(rho_involute), roll(r_tip));
-    let steps = ((t1 - t0) / (8.0 * tol / (r_base * t1)).sqrt()).ceil().max(1.0) as usize;
+    let steps = ((t1 - t0) / (8.0 * tol / (r_base * t1)).sqrt())
+        .ceil()
+        .max(1.0) as usize;
     half.extend((0..=steps).map(|k| {
         let t = t0 + (t1 - t0) * k as f64 / steps as f64;
         polar(r_base * (1.0 + t * t).sqrt(), psi_base - (t - t.atan()))
     }));
     let tip_half = flank_angle(r_tip);
-    let tip_steps = (tip_half / (2.0 * (1.0 - tol / r_tip).acos())).ceil().max(1.0) as usize;
-    half.extend((1..=tip_steps).map(|k| polar(r_tip, tip_half * (1.0 - k as f64 / tip_steps as f64))));
+    let tip_steps = (tip_half / (2.0 * (1.0 - tol / r_tip).acos()))
+        .ceil()
+        .max(1.0) as usize;
+    half.extend(
+        (1..=tip_steps).map(|k| polar(r_tip, tip_half * (1.0 - k as f64 / tip_steps as f64))),
+    );
     // Where the first flank segment crosses the root circle: the root circle gets a vertex there.
     let (a, b) = (half[0], half[1]);
     let dir = b - a;
@@ -311,7 +322,12 @@ mod tests {
         // Offset d adds perimeter * d + 4 sharp convex corners' squares.
         let d = 0.05e-3;
         let expected = 225e-6 + 100e-3 * d + 4.0 * d * d * 2.0 - 4.0 * d * d;
-        assert!((area(d) - expected).abs() < 1e-12, "{} vs {}", area(d), expected);
+        assert!(
+            (area(d) - expected).abs() < 1e-12,
+            "{} vs {}",
+            area(d),
+            expected
+        );
     }
 
     #[test]
@@ -325,7 +341,10 @@ mod tests {
         assert!((max_r - 14e-3).abs() < 1e-9, "{max_r}");
         // Tip land of a tooth: the tip arc spans more than 1 mm.
         let tooth = &pieces[1];
-        let tip: Vec<&P2> = tooth.iter().filter(|p| (p.coords.norm() - 14e-3).abs() < 1e-9).collect();
+        let tip: Vec<&P2> = tooth
+            .iter()
+            .filter(|p| (p.coords.norm() - 14e-3).abs() < 1e-9)
+            .collect();
         let span = tip.iter().map(|p| p.y).fold(f64::MIN, f64::max)
             - tip.iter().map(|p| p.y).fold(f64::MAX, f64::min);
         assert!(span > 1.0e-3, "tip land {span}");

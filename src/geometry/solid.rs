@@ -17,7 +17,11 @@ pub struct ZPlane {
 
 impl ZPlane {
     pub fn flat(z: f64) -> Self {
-        ZPlane { a: 0.0, b: 0.0, c: z }
+        ZPlane {
+            a: 0.0,
+            b: 0.0,
+            c: z,
+        }
     }
 
     pub fn z(&self, p: P2) -> f64 {
@@ -74,7 +78,10 @@ impl ConvexPiece {
     /// (`lower` strictly below `upper` on the footprint).
     pub fn slab(footprint: &[P2], lower: ZPlane, upper: ZPlane) -> Self {
         let n = footprint.len() as u32;
-        let mut vertices: Vec<P3> = footprint.iter().map(|&p| P3::new(p.x, p.y, lower.z(p))).collect();
+        let mut vertices: Vec<P3> = footprint
+            .iter()
+            .map(|&p| P3::new(p.x, p.y, lower.z(p)))
+            .collect();
         vertices.extend(footprint.iter().map(|&p| P3::new(p.x, p.y, upper.z(p))));
         let mut faces = vec![(0..n).collect::<Vec<u32>>(), (n..2 * n).collect()];
         faces.extend((0..n).map(|i| vec![i, (i + 1) % n, n + (i + 1) % n, n + i]));
@@ -96,7 +103,8 @@ impl ConvexPiece {
             .iter()
             .map(|f| {
                 let first = f.first_vertex_or_edge as usize;
-                hull.vertices_adj_to_face()[first..first + f.num_vertices_or_edges as usize].to_vec()
+                hull.vertices_adj_to_face()[first..first + f.num_vertices_or_edges as usize]
+                    .to_vec()
             })
             .collect();
         Some(Self::from_faces(vertices, faces))

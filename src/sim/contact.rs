@@ -37,7 +37,12 @@ impl QueryDispatcher for ExactConvexDispatcher {
         DefaultQueryDispatcher.intersection_test(pos12, g1, g2)
     }
 
-    fn distance(&self, pos12: &Pose, g1: &dyn Shape, g2: &dyn Shape) -> Result<ShapeDistance, Unsupported> {
+    fn distance(
+        &self,
+        pos12: &Pose,
+        g1: &dyn Shape,
+        g2: &dyn Shape,
+    ) -> Result<ShapeDistance, Unsupported> {
         DefaultQueryDispatcher.distance(pos12, g1, g2)
     }
 
@@ -139,9 +144,18 @@ where
                 if manifolds.is_empty() {
                     manifolds.push(ContactManifold::new());
                 }
-                self.contact_manifold_convex_convex(pos12, g1, g2, None, None, prediction, &mut manifolds[0])
+                self.contact_manifold_convex_convex(
+                    pos12,
+                    g1,
+                    g2,
+                    None,
+                    None,
+                    prediction,
+                    &mut manifolds[0],
+                )
             }
-            (None, None) => DefaultQueryDispatcher.contact_manifolds(pos12, g1, g2, prediction, manifolds, workspace),
+            (None, None) => DefaultQueryDispatcher
+                .contact_manifolds(pos12, g1, g2, prediction, manifolds, workspace),
         }
     }
 
@@ -235,7 +249,11 @@ fn sat_manifold<M, C: Default + Copy>(
 
     // B in A's frame, once.
     let pb: Vec<Vector> = b.points().iter().map(|&p| *pos12 * p).collect();
-    let nb: Vec<Vector> = b.faces().iter().map(|f| pos12.rotation * f.normal).collect();
+    let nb: Vec<Vector> = b
+        .faces()
+        .iter()
+        .map(|f| pos12.rotation * f.normal)
+        .collect();
     let pa = a.points();
     let vertex_of_face = |p: &ConvexPolyhedron, f: usize| {
         p.vertices_adj_to_face()[p.faces()[f].first_vertex_or_edge as usize] as usize
@@ -268,21 +286,39 @@ fn sat_manifold<M, C: Default + Copy>(
             best = (s, Axis::FaceB(i), -*m);
         }
     }
-    // Edge pairs that make a face of the Minkowski difference.
+    // Edge pairs that make a face of the Minkowski difference. Per edge: the two adjacent face
+    // normals (B's negated), their cross product, the direction and a point, all in A's frame.
     let centroid_a = pa.iter().copied().sum::<Vector>() / pa.len() as Real;
     let face_limit = best.0;
+    let arcs_b: Vec<GaussArc> = b
+        .edges()
+        .iter()
+        .map(|e| {
+            let (c, d) = (-nb[e.faces[0] as usize], -nb[e.faces[1] as usize]);
+            GaussArc {
+                n1: c,
+                n2: d,
+                cross: d.cross(c),
+                dir: pos12.rotation * e.dir,
+                point: pb[e.vertices[0] as usize],
+            }
+        })
+        .collect();
     for (ia, ea) in a.edges().iter().enumerate() {
         let (fa1, fa2) = (
             a.faces()[ea.faces[0] as usize].normal,
             a.faces()[ea.faces[1] as usize].normal,
         );
+        let b_x_a = fa2.cross(fa1);
         let p_a = pa[ea.vertices[0] as usize];
-        for (ib, eb) in b.edges().iter().enumerate() {
-            let (fb1, fb2) = (-nb[eb.faces[0] as usize], -nb[eb.faces[1] as usize]);
-            if !is_minkowski_face(fa1, fa2, fb1, fb2) {
+        for (ib, eb) in arcs_b.iter().enumerate() {
+            // Gauss-map arcs (fa1, fa2) and (c, d) cross (D. Gregorius, GDC 2013).
+            let (cba, dba) = (eb.n1.dot(b_x_a), eb.n2.dot(b_x_a));
+            let (adc, bdc) = (fa1.dot(eb.cross), fa2.dot(eb.cross));
+            if !(cba * dba < 0.0 && adc * bdc < 0.0 && cba * bdc > 0.0) {
                 continue;
             }
-            let axis = ea.dir.cross(pos12.rotation * eb.dir);
+            let axis = ea.dir.cross(eb.dir);
             let len = axis.length();
             if len < 1e-5 {
                 continue;
@@ -291,7 +327,7 @@ fn sat_manifold<M, C: Default + Copy>(
             if axis.dot(p_a - centroid_a) < 0.0 {
                 axis = -axis;
             }
-            let s = axis.dot(pb[eb.vertices[0] as usize] - p_a);
+            let s = axis.dot(eb.point - p_a);
             if s > prediction {
                 manifold.local_n1 = axis;
                 return;
@@ -312,16 +348,14 @@ fn sat_manifold<M, C: Default + Copy>(
     manifold.match_contacts(&old_points);
 }
 
-/// Whether arcs (a, b) and (c, d) of the Gauss map cross: the edges with these adjacent face
-/// normals (the second pair already negated) make a face of the Minkowski difference.
-fn is_minkowski_face(a: Vector, b: Vector, c: Vector, d: Vector) -> bool {
-    let b_x_a = b.cross(a);
-    let d_x_c = d.cross(c);
-    let cba = c.dot(b_x_a);
-    let dba = d.dot(b_x_a);
-    let adc = a.dot(d_x_c);
-    let bdc = b.dot(d_x_c);
-    cba * dba < 0.0 && adc * bdc < 0.0 && cba * bdc > 0.0
+/// An edge of the second piece on the Gauss map, in the first piece's frame: its two adjacent
+/// face normals, negated, their cross product, and the edge's direction and one of its points.
+struct GaussArc {
+    n1: Vector,
+    n2: Vector,
+    cross: Vector,
+    dir: Vector,
+    point: Vector,
 }
 
 fn face_polygon(p: &ConvexPolyhedron, face: usize) -> Vec<Vector> {
@@ -354,7 +388,10 @@ fn face_contacts<M, C: Default + Copy>(
         .enumerate()
         .map(|(k, f)| (k, f.normal.dot(n_i)))
         .fold((0, Real::MAX), |acc, x| if x.1 < acc.1 { x } else { acc });
-    let mut poly: Vec<Vector> = face_polygon(inc, inc_face).iter().map(|&p| *pos_ri * p).collect();
+    let mut poly: Vec<Vector> = face_polygon(inc, inc_face)
+        .iter()
+        .map(|&p| *pos_ri * p)
+        .collect();
     let centre = reference.iter().copied().sum::<Vector>() / reference.len() as Real;
     for k in 0..reference.len() {
         let (v0, v1) = (reference[k], reference[(k + 1) % reference.len()]);
@@ -415,13 +452,21 @@ fn reduce_to_four(points: &mut Vec<(Vector, Real)>) {
         .unwrap_or(0);
     let p0 = points[deepest].0;
     let far = (0..points.len())
-        .max_by(|&i, &j| (points[i].0 - p0).length_squared().total_cmp(&(points[j].0 - p0).length_squared()))
+        .max_by(|&i, &j| {
+            (points[i].0 - p0)
+                .length_squared()
+                .total_cmp(&(points[j].0 - p0).length_squared())
+        })
         .unwrap_or(0);
     let p1 = points[far].0;
     let line = p1 - p0;
     let area = |i: usize| (points[i].0 - p0).cross(line);
     let third = (0..points.len())
-        .max_by(|&i, &j| area(i).length_squared().total_cmp(&area(j).length_squared()))
+        .max_by(|&i, &j| {
+            area(i)
+                .length_squared()
+                .total_cmp(&area(j).length_squared())
+        })
         .unwrap_or(0);
     let normal = area(third);
     let fourth = (0..points.len())
@@ -446,7 +491,10 @@ fn edge_contact<M, C: Default + Copy>(
 ) {
     let ea = &a.edges()[ia];
     let eb = &b.edges()[ib];
-    let (a0, a1) = (a.points()[ea.vertices[0] as usize], a.points()[ea.vertices[1] as usize]);
+    let (a0, a1) = (
+        a.points()[ea.vertices[0] as usize],
+        a.points()[ea.vertices[1] as usize],
+    );
     let (b0, b1) = (
         *pos12 * b.points()[eb.vertices[0] as usize],
         *pos12 * b.points()[eb.vertices[1] as usize],
@@ -471,7 +519,11 @@ fn closest_points_segments(p0: Vector, p1: Vector, q0: Vector, q1: Vector) -> (V
     let c = d1.dot(r);
     let b = d1.dot(d2);
     let denom = a * e - b * b;
-    let mut s = if denom > 1e-12 { ((b * f - c * e) / denom).clamp(0.0, 1.0) } else { 0.0 };
+    let mut s = if denom > 1e-12 {
+        ((b * f - c * e) / denom).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let mut t = (b * s + f) / e.max(1e-12);
     if t < 0.0 {
         t = 0.0;

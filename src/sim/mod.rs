@@ -154,12 +154,20 @@ pub fn add_dynamic(
 
 /// The contact wrench that all other colliders exert on `collider` during the last step, from the
 /// solver's normal and friction impulses divided by the step; the torque is about `about` (world).
-pub fn contact_wrench(world: &PhysicsWorld, collider: ColliderHandle, about: Vector3<f64>) -> Wrench {
+pub fn contact_wrench(
+    world: &PhysicsWorld,
+    collider: ColliderHandle,
+    about: Vector3<f64>,
+) -> Wrench {
     let dt = world.integration_parameters.dt as f64;
     let mut w = Wrench::default();
     for pair in world.narrow_phase.contact_pairs_with(collider) {
         // Impulses are stored as applied to collider1's body.
-        let sign = if pair.collider1 == collider { 1.0 } else { -1.0 };
+        let sign = if pair.collider1 == collider {
+            1.0
+        } else {
+            -1.0
+        };
         let Some(rigid) = pair.rigid() else {
             continue;
         };
@@ -170,11 +178,12 @@ pub fn contact_wrench(world: &PhysicsWorld, collider: ColliderHandle, about: Vec
             for contact in &manifold.data.solver_contacts {
                 let point = &manifold.points[contact.contact_id[0] as usize & 0x7fff_ffff];
                 let data = &point.data;
-                let impulse = dir1 * data.impulse
-                    + t1 * data.tangent_impulse.x
-                    + t2 * data.tangent_impulse.y;
+                let impulse =
+                    dir1 * data.impulse + t1 * data.tangent_impulse.x + t2 * data.tangent_impulse.y;
                 let f = v64(impulse) * (sign / dt);
-                let (p1, p2) = manifold.data.solver_contact_world_points(contact, &world.bodies);
+                let (p1, p2) = manifold
+                    .data
+                    .solver_contact_world_points(contact, &world.bodies);
                 let at = v64((p1 + p2) * 0.5);
                 w.force += f;
                 w.torque += (at - about).cross(&f);

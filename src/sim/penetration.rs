@@ -34,10 +34,12 @@ pub fn piece_penetration(a: &ConvexPiece, b: &ConvexPiece) -> f64 {
 }
 
 fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
-    points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-        let d = p.coords.dot(axis);
-        (lo.min(d), hi.max(d))
-    })
+    points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            let d = p.coords.dot(axis);
+            (lo.min(d), hi.max(d))
+        })
 }
 
 fn transformed(piece: &ConvexPiece, iso: &Isometry3<f64>) -> ConvexPiece {
@@ -107,8 +109,13 @@ mod tests {
 
     #[test]
     fn overlapping_cubes_report_the_smallest_overlap() {
-        assert!((piece_penetration(&cube(0.0, 0.0, 0.0), &cube(0.9, 0.5, 0.2)) - 0.1).abs() < 1e-12);
-        assert_eq!(piece_penetration(&cube(0.0, 0.0, 0.0), &cube(1.001, 0.0, 0.0)), 0.0);
+        assert!(
+            (piece_penetration(&cube(0.0, 0.0, 0.0), &cube(0.9, 0.5, 0.2)) - 0.1).abs() < 1e-12
+        );
+        assert_eq!(
+            piece_penetration(&cube(0.0, 0.0, 0.0), &cube(1.001, 0.0, 0.0)),
+            0.0
+        );
         // Tiny overlaps are measured, not inflated (the engine reported 9.9 mm for 1.6 um).
         let d = piece_penetration(&cube(0.0, 0.0, 0.0), &cube(1.0 - 1.6e-6, 0.3, 0.3));
         assert!((d - 1.6e-6).abs() < 1e-12, "{d}");
