@@ -117,8 +117,6 @@ impl PairArgs {
                     peg: peg.solid,
                     hole: hole.solid,
                     cavity_depth_m: depth_mm * 1e-3,
-                    peg_rings: vec![],
-                    cavity_rings: vec![],
                 })
             }
             _ => Err(Error::Input(

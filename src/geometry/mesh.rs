@@ -214,8 +214,7 @@ fn max_distance_to_surface(points: impl Iterator<Item = P3>, surface: &TriMesh) 
         .fold(0.0, f64::max)
 }
 
-/// Points on a convex piece's surface for deviation checks: its vertices and the midpoints of
-/// its vertex pairs that lie on the hull surface are approximated by face centroids.
+/// Points on a convex piece's surface for deviation checks: its vertices and its face centroids.
 fn piece_surface_samples(piece: &ConvexPiece) -> Vec<P3> {
     let mut out = piece.vertices.clone();
     for n in &piece.face_normals {

@@ -49,10 +49,6 @@ pub struct PartPair {
     pub hole: Solid,
     /// Depth of the cavity floor below the mouth, metres (tip z at full insertion is minus this).
     pub cavity_depth_m: f64,
-    /// Peg cross-section rings (material on the left), metres; empty for meshes.
-    pub peg_rings: Vec<Vec<P2>>,
-    /// Cavity rings at the cavity walls (material on the left), metres; empty for meshes.
-    pub cavity_rings: Vec<Vec<P2>>,
 }
 
 /// Checks a clearance value (metres) against the supported range.
@@ -104,8 +100,7 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
     let cavity = simplified(union(&builtin.pieces(half_gap, tol, d_max)));
     let peg =
         build_peg(&peg_profile).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
-    let (hole, cavity_rings) =
-        build_hole(&cavity).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
+    let hole = build_hole(&cavity).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
     Ok(PartPair {
         name: builtin.name().to_string(),
         clearance_m,
@@ -113,11 +108,6 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
         peg,
         hole,
         cavity_depth_m: CAVITY_DEPTH_M,
-        peg_rings: peg_profile
-            .iter()
-            .flat_map(|r| r.rings().cloned())
-            .collect(),
-        cavity_rings,
     })
 }
 
@@ -266,8 +256,7 @@ fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
 }
 
 /// The hole block: walls around the cavity with a chamfered mouth, and the floor slab.
-/// Returns the solid and the cavity rings (material on the left).
-fn build_hole(cavity: &[Region]) -> std::result::Result<(Solid, Vec<Vec<P2>>), String> {
+fn build_hole(cavity: &[Region]) -> std::result::Result<Solid, String> {
     let ch = HOLE_ENTRY_CHAMFER_M;
     let half = BLOCK_SIZE_M / 2.0;
     let square = rect(-half, -half, half, half);
@@ -319,13 +308,10 @@ fn build_hole(cavity: &[Region]) -> std::result::Result<(Solid, Vec<Vec<P2>>), S
         bottom,
         false,
     );
-    Ok((
-        Solid {
-            pieces,
-            boundary: Some(m.finish()),
-        },
-        rings,
-    ))
+    Ok(Solid {
+        pieces,
+        boundary: Some(m.finish()),
+    })
 }
 
 /// Writes `peg.stl` and `hole.stl` (millimetres, watertight) into `dir`, creating it, and with

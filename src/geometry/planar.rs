@@ -163,20 +163,6 @@ pub fn distance_to_segment(p: P2, a: P2, b: P2) -> f64 {
     (p - (a + ab * t)).norm()
 }
 
-/// Minimum distance between two rings' boundaries (vertex-to-edge both ways).
-pub fn ring_distance(a: &[P2], b: &[P2]) -> f64 {
-    fn one_way(a: &[P2], b: &[P2]) -> f64 {
-        a.iter()
-            .map(|&p| {
-                (0..b.len())
-                    .map(|j| distance_to_segment(p, b[j], b[(j + 1) % b.len()]))
-                    .fold(f64::INFINITY, f64::min)
-            })
-            .fold(f64::INFINITY, f64::min)
-    }
-    one_way(a, b).min(one_way(b, a))
-}
-
 fn to_geo_ring(ring: &[P2]) -> LineString<f64> {
     LineString::new(ring.iter().map(|p| Coord { x: p.x, y: p.y }).collect())
 }
