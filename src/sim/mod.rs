@@ -5,8 +5,8 @@
 //! contact recycling off (stale contacts let a peg tunnel or jam falsely in a tight hole),
 //! contact clustering off (clustered impulses over-report the force), `length_unit` 0.01 m, contact
 //! softness 240 Hz (the default 30/60 Hz lets a peg sink into a rim it cannot enter), 1 ms step,
-//! 4 solver iterations, Coulomb friction per contact point, 30 um predictive contacts extended by
-//! the body's velocity (soft CCD), and rapier's swept CCD off (it treats a body with 0.3 mm
+//! 4 solver iterations, Coulomb friction per contact point, predictive contacts 30 um ahead or
+//! further at speed (`set_prediction_for_speed`), and rapier's swept CCD off (it treats a body with 0.3 mm
 //! chamfer pieces as "fast" at any speed and sweeps every piece: 54 % of the time of a `gear` step).
 
 pub mod contact;
@@ -16,9 +16,8 @@ use crate::geometry::solid::Solid;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 
-/// How far ahead (metres) a moving body's contacts are predicted from its velocity (rapier's soft
-/// CCD): a peg that drops onto a rim at 0.1 m/s still meets it.
-pub const SOFT_CCD_PREDICTION_M: f64 = 2e-3;
+/// Contacts are predicted at least this far (metres) in every step.
+pub const MIN_PREDICTION_M: f64 = 30e-6;
 
 /// Integration and contact parameters.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -57,7 +56,7 @@ impl PhysicsParams {
             contact_recycling: false,
             contact_clustering: false,
             friction_model: FrictionModel::Coulomb,
-            normalized_prediction_distance: 0.003,
+            normalized_prediction_distance: (MIN_PREDICTION_M / self.length_unit_m) as f32,
             max_ccd_substeps: 0,
             ..Default::default()
         };
@@ -74,6 +73,23 @@ impl PhysicsParams {
         world.integration_parameters = self.integration_parameters();
         world
     }
+}
+
+/// Sets the world's contact prediction distance for the coming step: at least
+/// `MIN_PREDICTION_M`, and 1.5 times the distance a point moving at `max_point_speed` (m/s) covers
+/// in one step, so that a fast peg still meets a rim it drops onto. rapier's per-body soft CCD
+/// does the same but drops every contact of a body resting a micrometre above a face (its
+/// pre-check uses bounding boxes without margin), so pegtwin adapts the world's distance instead.
+pub fn set_prediction_for_speed(world: &mut PhysicsWorld, max_point_speed: f64) {
+    let p = &mut world.integration_parameters;
+    let distance = MIN_PREDICTION_M.max(1.5 * max_point_speed * p.dt as f64);
+    p.normalized_prediction_distance = (distance / p.length_unit as f64) as f32;
+}
+
+/// The largest speed (m/s) of any point of a body within `radius` metres of its centre of mass.
+pub fn max_point_speed(world: &PhysicsWorld, body: RigidBodyHandle, radius: f64) -> f64 {
+    let rb = &world.bodies[body];
+    v64(rb.linvel()).norm() + v64(rb.angvel()).norm() * radius
 }
 
 /// A force and a torque, N and N m, in the world frame.
@@ -142,7 +158,6 @@ pub fn add_dynamic(
     let body = world.insert_body(
         RigidBodyBuilder::dynamic()
             .pose(pose32(pose))
-            .soft_ccd_prediction(SOFT_CCD_PREDICTION_M as f32)
             .can_sleep(false),
     );
     let collider = world.insert_collider(
