@@ -89,16 +89,14 @@ impl FreePegRig {
             FREE_PEG_MASS_KG,
             params.friction,
         );
-        // Mass properties are computed when the collider is attached; read them back.
-        world.step();
-        let rb = &world.bodies[body];
-        let mass_kg = rb.mass() as f64;
-        let inertia = rb.mass_properties().local_mprops.principal_inertia();
+        let mprops = world.colliders[collider].mass_properties();
+        let mass_kg = mprops.mass() as f64;
+        let inertia = mprops.principal_inertia();
         let inertia_min = inertia.x.min(inertia.y).min(inertia.z) as f64;
         let zeta = gains.damping_ratio;
         let (lo, hi) = pair.peg.bounds();
         let reach_m = (hi - lo).norm();
-        let rig = FreePegRig {
+        FreePegRig {
             reach_m,
             damping_trans: 2.0 * zeta * (gains.stiffness_n_per_m * mass_kg).sqrt(),
             damping_rot: 2.0 * zeta * (gains.rot_stiffness_nm_per_rad * inertia_min).sqrt(),
@@ -108,19 +106,7 @@ impl FreePegRig {
             mass_kg,
             gains,
             target: *start,
-        };
-        let mut rig = rig;
-        rig.reset_to(start);
-        rig
-    }
-
-    /// Puts the peg at `pose`, at rest, and makes it the target.
-    fn reset_to(&mut self, pose: &Isometry3<f64>) {
-        let rb = &mut self.world.bodies[self.body];
-        rb.set_position(crate::sim::pose32(pose), true);
-        rb.set_linvel(rapier3d::prelude::Vector::ZERO, true);
-        rb.set_angvel(rapier3d::prelude::Vector::ZERO, true);
-        self.target = *pose;
+        }
     }
 
     /// Pose of the peg frame (tip), world.
