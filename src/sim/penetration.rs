@@ -6,8 +6,40 @@
 use crate::geometry::solid::{ConvexPiece, P3, Solid};
 use nalgebra::{Isometry3, Vector3};
 
+/// A convex piece's vertices, face normals and edge directions placed in the world.
+struct Posed {
+    vertices: Vec<P3>,
+    face_normals: Vec<Vector3<f64>>,
+    edge_dirs: Vec<Vector3<f64>>,
+    bounds: (P3, P3),
+}
+
+impl Posed {
+    fn new(piece: &ConvexPiece, iso: &Isometry3<f64>) -> Self {
+        let vertices: Vec<P3> = piece.vertices.iter().map(|p| iso * p).collect();
+        let bounds = vertices.iter().fold(
+            (
+                P3::new(f64::MAX, f64::MAX, f64::MAX),
+                P3::new(f64::MIN, f64::MIN, f64::MIN),
+            ),
+            |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+        );
+        Posed {
+            vertices,
+            face_normals: piece.face_normals.iter().map(|n| iso * n).collect(),
+            edge_dirs: piece.edge_dirs.iter().map(|e| iso * e).collect(),
+            bounds,
+        }
+    }
+}
+
 /// Depth (metres) by which two convex pieces, given in one frame, overlap; 0 when they do not.
 pub fn piece_penetration(a: &ConvexPiece, b: &ConvexPiece) -> f64 {
+    let id = Isometry3::identity();
+    posed_penetration(&Posed::new(a, &id), &Posed::new(b, &id))
+}
+
+fn posed_penetration(a: &Posed, b: &Posed) -> f64 {
     let mut depth = f64::INFINITY;
     let mut test = |axis: &Vector3<f64>| -> bool {
         let (a0, a1) = project(&a.vertices, axis);
@@ -42,37 +74,20 @@ fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
         })
 }
 
-fn transformed(piece: &ConvexPiece, iso: &Isometry3<f64>) -> ConvexPiece {
-    ConvexPiece {
-        vertices: piece.vertices.iter().map(|p| iso * p).collect(),
-        faces: piece.faces.clone(),
-        face_normals: piece.face_normals.iter().map(|n| iso * n).collect(),
-        edge_dirs: piece.edge_dirs.iter().map(|e| iso * e).collect(),
-    }
-}
-
 fn overlaps(a: &(P3, P3), b: &(P3, P3)) -> bool {
     (0..3).all(|i| a.0[i] <= b.1[i] && b.0[i] <= a.1[i])
 }
 
 /// Precomputed pieces and bounds of a fixed solid, for repeated penetration queries.
 pub struct PenetrationProbe {
-    fixed: Vec<(ConvexPiece, (P3, P3))>,
+    fixed: Vec<Posed>,
 }
 
 impl PenetrationProbe {
     /// Prepares the fixed solid placed at `pose` in the world.
     pub fn new(fixed: &Solid, pose: &Isometry3<f64>) -> Self {
         PenetrationProbe {
-            fixed: fixed
-                .pieces
-                .iter()
-                .map(|p| {
-                    let t = transformed(p, pose);
-                    let b = t.bounds();
-                    (t, b)
-                })
-                .collect(),
+            fixed: fixed.pieces.iter().map(|p| Posed::new(p, pose)).collect(),
         }
     }
 
@@ -81,11 +96,10 @@ impl PenetrationProbe {
     pub fn max_penetration(&self, moving: &Solid, pose: &Isometry3<f64>) -> f64 {
         let mut worst: f64 = 0.0;
         for piece in &moving.pieces {
-            let t = transformed(piece, pose);
-            let bounds = t.bounds();
-            for (f, fb) in &self.fixed {
-                if overlaps(&bounds, fb) {
-                    worst = worst.max(piece_penetration(&t, f));
+            let posed = Posed::new(piece, pose);
+            for fixed in &self.fixed {
+                if overlaps(&posed.bounds, &fixed.bounds) {
+                    worst = worst.max(posed_penetration(&posed, fixed));
                 }
             }
         }
@@ -129,14 +143,15 @@ mod tests {
             Vector3::new(1.0 + 0.8, 0.5, 0.5),
             Vector3::new(0.0, 0.0, std::f64::consts::FRAC_PI_4),
         );
-        let centred = transformed(&cube(-0.5, -0.5, -0.5), &rot);
+        let a = Posed::new(&a, &Isometry3::identity());
+        let centred = Posed::new(&cube(-0.5, -0.5, -0.5), &rot);
         // The rotated cube reaches 0.5 * sqrt(2) = 0.707 < 0.8 from its centre: no contact.
-        assert_eq!(piece_penetration(&a, &centred), 0.0);
+        assert_eq!(posed_penetration(&a, &centred), 0.0);
         let closer = Isometry3::new(
             Vector3::new(1.0 + 0.6, 0.5, 0.5),
             Vector3::new(0.0, 0.0, std::f64::consts::FRAC_PI_4),
         );
-        let d = piece_penetration(&a, &transformed(&cube(-0.5, -0.5, -0.5), &closer));
+        let d = posed_penetration(&a, &Posed::new(&cube(-0.5, -0.5, -0.5), &closer));
         assert!((d - (0.5f64.sqrt() - 0.6)).abs() < 1e-9, "{d}");
     }
 }
