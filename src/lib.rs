@@ -4,5 +4,7 @@
 pub mod cli;
 pub mod error;
 pub mod geometry;
+pub mod manifold;
+pub mod pose;
 pub mod sim;
 pub mod validate;
