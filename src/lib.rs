@@ -6,5 +6,6 @@ pub mod error;
 pub mod geometry;
 pub mod manifold;
 pub mod pose;
+pub mod registration;
 pub mod sim;
 pub mod validate;

@@ -163,9 +163,10 @@ pub fn se3_log(t: &Iso) -> Vector6<f64> {
     Vector6::new(rho.x, rho.y, rho.z, phi.x, phi.y, phi.z)
 }
 
-/// Iterations and tolerance (scaled twist norm, mm-equivalents) of [`se3_mean`].
+/// Iterations and tolerance (scaled twist norm, mm-equivalents: 1e-9 is a picometre) of
+/// [`se3_mean`].
 const MEAN_MAX_ITERATIONS: usize = 50;
-const MEAN_TOLERANCE: f64 = 1e-12;
+const MEAN_TOLERANCE: f64 = 1e-9;
 
 /// The SE(3) mean of rigid transforms, every transform weighted equally.
 ///

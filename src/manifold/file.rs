@@ -103,7 +103,7 @@ impl<'a> Reader<'a> {
     }
 
     fn rows(&mut self, n: usize, what: &str) -> Result<Vec<[f64; 6]>> {
-        let bytes = self.take(n.checked_mul(48).unwrap_or(usize::MAX), what)?;
+        let bytes = self.take(n.saturating_mul(48), what)?;
         Ok(bytes
             .chunks_exact(48)
             .map(|c| {

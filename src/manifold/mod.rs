@@ -57,7 +57,7 @@ pub const UNITS: &str = "m, rad";
 /// Euclidean distances, so neighbours and distances are exactly those of the scaled space.
 pub struct ScaledIndex {
     rotation: Matrix6<f64>,
-    tree: ImmutableKdTree<f64, u32, 6, 32>,
+    tree: ImmutableKdTree<f64, u32, 6, 64>,
 }
 
 impl ScaledIndex {
@@ -88,6 +88,29 @@ impl ScaledIndex {
         (n.item as usize, n.distance)
     }
 
+    /// A cache of the `m` nearest points to `q`; `ids` maps this index's items to the indices
+    /// the cache should hold (identity when `None`).
+    pub fn cache(&self, q: &[f64; 6], m: NonZero<usize>, ids: Option<&[usize]>) -> NeighbourCache {
+        let found = self
+            .tree
+            .nearest_n::<SquaredEuclidean>(&rotate(&self.rotation, q), m);
+        let radius = found.last().map_or(0.0, |n| n.distance.sqrt());
+        // A cache that holds every point is exact whatever the motion.
+        let radius = if found.len() < m.get() {
+            f64::INFINITY
+        } else {
+            radius
+        };
+        NeighbourCache {
+            query: *q,
+            candidates: found
+                .iter()
+                .map(|n| ids.map_or(n.item as usize, |ids| ids[n.item as usize]))
+                .collect(),
+            radius,
+        }
+    }
+
     /// Indices of the `k` nearest points to `q` (nearest first).
     pub fn nearest_k(&self, q: &[f64; 6], k: NonZero<usize>) -> Vec<usize> {
         self.tree
@@ -95,6 +118,61 @@ impl ScaledIndex {
             .into_iter()
             .map(|n| n.item as usize)
             .collect()
+    }
+}
+
+/// The `m` nearest neighbours of a query, kept so that later queries near it can be answered
+/// without a tree search (warm-started correspondences).
+///
+/// Every point not in `candidates` was at least `radius` from `query`. If the distance between
+/// the query and any such point has since shrunk by at most `slack`, it is now at least
+/// `radius - slack` away; so when the k-th nearest candidate is closer than that, the k nearest
+/// candidates are exactly the k nearest points. For fixed points, `slack` is how far the query
+/// moved ([`NeighbourCache::moved`]); for points that move too, it also bounds their motion
+/// relative to the query's.
+#[derive(Clone, Debug)]
+pub struct NeighbourCache {
+    query: [f64; 6],
+    candidates: Vec<usize>,
+    radius: f64,
+}
+
+impl NeighbourCache {
+    /// How far `q` is from the query the cache was made for.
+    pub fn moved(&self, q: &[f64; 6]) -> f64 {
+        squared_distance(q, &self.query).sqrt()
+    }
+
+    /// The cached points, nearest to the cached query first.
+    pub fn candidates(&self) -> &[usize] {
+        &self.candidates
+    }
+
+    /// The `k` nearest points to `q` (indices into `points`, nearest first) if the cache
+    /// guarantees them, `None` otherwise.
+    pub fn k_nearest(
+        &self,
+        points: &[[f64; 6]],
+        q: &[f64; 6],
+        k: usize,
+        slack: f64,
+    ) -> Option<Vec<usize>> {
+        if self.candidates.len() <= k {
+            return None;
+        }
+        let mut d: Vec<(f64, usize)> = self
+            .candidates
+            .iter()
+            .map(|&i| (squared_distance(q, &points[i]), i))
+            .collect();
+        d.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let kth = d[k - 1].0.sqrt();
+        if kth * (1.0 + 1e-12) >= self.radius - slack {
+            return None;
+        }
+        let mut best = d[..k].to_vec();
+        best.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        Some(best.into_iter().map(|(_, i)| i).collect())
     }
 }
 
@@ -197,6 +275,32 @@ pub fn cloud_normals(points: &[[f64; 6]], index: &ScaledIndex, k: usize) -> Vec<
         .collect()
 }
 
+/// Manifold points kept in a correspondence cache: at full resolution, where steps are small and
+/// a larger cache is reused for many iterations; at the coarse level, where steps are large and
+/// caches are soon renewed.
+const REFERENCE_CACHE_SIZE: NonZero<usize> = NonZero::new(16).unwrap();
+const COARSE_CACHE_SIZE: NonZero<usize> = NonZero::new(4).unwrap();
+/// The coarse level holds every `COARSE_STRIDE`-th point ...
+const COARSE_STRIDE: usize = 64;
+/// ... when the manifold has at least this many points.
+const COARSE_MIN_POINTS: usize = 32_000;
+
+/// Which points a nearest-neighbour search considers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Resolution {
+    /// Every [`COARSE_STRIDE`]-th point (all points for small manifolds): cheap far from the
+    /// manifold, for the first iterations of a coarse-to-fine solver.
+    Coarse,
+    /// Every point.
+    Full,
+}
+
+/// A subset of the manifold with its own index (`ids` are indices into the manifold).
+struct Subset {
+    ids: Vec<usize>,
+    index: ScaledIndex,
+}
+
 /// A reference contact manifold: poses, normals, index, metadata.
 pub struct Manifold {
     pub meta: ManifoldMeta,
@@ -206,6 +310,19 @@ pub struct Manifold {
     pub normals: Vec<[f64; 6]>,
     scaled: Vec<[f64; 6]>,
     index: ScaledIndex,
+    coarse: Option<Subset>,
+}
+
+/// The coarse level of a manifold of `scaled` points, if it is large enough to need one.
+fn coarse_subset(scaled: &[[f64; 6]]) -> Option<Subset> {
+    (scaled.len() >= COARSE_MIN_POINTS).then(|| {
+        let ids: Vec<usize> = (0..scaled.len()).step_by(COARSE_STRIDE).collect();
+        let pts: Vec<[f64; 6]> = ids.iter().map(|&i| scaled[i]).collect();
+        Subset {
+            ids,
+            index: ScaledIndex::new(&pts),
+        }
+    })
 }
 
 impl Manifold {
@@ -215,12 +332,14 @@ impl Manifold {
         let scaled: Vec<[f64; 6]> = points.iter().map(|p| meta.metric.scaled(p)).collect();
         let index = ScaledIndex::new(&scaled);
         let normals = cloud_normals(&scaled, &index, meta.normal_k);
+        let coarse = coarse_subset(&scaled);
         Ok(Manifold {
             meta,
             points,
             normals,
             scaled,
             index,
+            coarse,
         })
     }
 
@@ -240,12 +359,14 @@ impl Manifold {
         }
         let scaled: Vec<[f64; 6]> = points.iter().map(|p| meta.metric.scaled(p)).collect();
         let index = ScaledIndex::new(&scaled);
+        let coarse = coarse_subset(&scaled);
         Ok(Manifold {
             meta,
             points,
             normals,
             scaled,
             index,
+            coarse,
         })
     }
 
@@ -269,6 +390,29 @@ impl Manifold {
         self.index.nearest(q)
     }
 
+    /// Index of the manifold point nearest to `q` (scaled coordinates) at a resolution, answered
+    /// from `cache` when it guarantees the answer, else by a tree search that refreshes the cache.
+    pub fn nearest_cached(
+        &self,
+        resolution: Resolution,
+        q: &[f64; 6],
+        cache: &mut Option<NeighbourCache>,
+    ) -> usize {
+        if let Some(hit) = cache
+            .as_ref()
+            .and_then(|c| c.k_nearest(&self.scaled, q, 1, c.moved(q)))
+        {
+            return hit[0];
+        }
+        let fresh = match (resolution, &self.coarse) {
+            (Resolution::Coarse, Some(c)) => c.index.cache(q, COARSE_CACHE_SIZE, Some(&c.ids)),
+            _ => self.index.cache(q, REFERENCE_CACHE_SIZE, None),
+        };
+        let nearest = fresh.candidates[0];
+        *cache = Some(fresh);
+        nearest
+    }
+
     /// Per-axis minimum and maximum of the poses (m, rad), for coverage reports.
     pub fn ranges(&self) -> [[f64; 2]; 6] {
         let mut r = [[f64::INFINITY, f64::NEG_INFINITY]; 6];
@@ -280,6 +424,11 @@ impl Manifold {
         }
         r
     }
+}
+
+/// Squared Euclidean distance of two points in scaled coordinates.
+pub fn squared_distance(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
 fn check_points(points: &[Pose6], k: usize) -> Result<()> {

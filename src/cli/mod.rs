@@ -9,6 +9,9 @@ use crate::validate::{FreePegGains, ValidationReport, validate};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
+mod registration;
+pub use registration::{ManifoldAction, RegisterArgs};
+
 #[derive(Parser)]
 #[command(
     name = "pegtwin",
@@ -30,6 +33,13 @@ pub enum Command {
     /// Self-check the contact physics on a pair before trusting a campaign (exit 0 only if every
     /// case behaves as expected).
     Validate(ValidateArgs),
+    /// Reference contact manifolds: inspect, export to CSV, import from CSV, synthesise.
+    Manifold {
+        #[command(subcommand)]
+        action: ManifoldAction,
+    },
+    /// Estimate the hole pose from observed contact poses (paper Algorithm 1).
+    Register(RegisterArgs),
 }
 
 #[derive(Subcommand)]
@@ -143,6 +153,8 @@ pub fn run(cli: Cli) -> Result<i32> {
             }
             Ok(if report.passed { 0 } else { 1 })
         }
+        Command::Manifold { action } => registration::manifold_command(action),
+        Command::Register(args) => registration::register_command(args),
     }
 }
 

@@ -1,0 +1,216 @@
+//! Manifold files (binary and CSV) and `pegtwin manifold` / `pegtwin register` from the command
+//! line: round trips, the estimate, and clear errors on bad input.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn pegtwin(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pegtwin"))
+        .args(args)
+        .output()
+        .expect("pegtwin runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A small synthetic cross manifold and 300 observations through a known hole pose.
+fn synth(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let m = dir.join("cross.manifold");
+    let obs = dir.join("obs.csv");
+    let o = pegtwin(&[
+        "manifold",
+        "synth",
+        "--shape",
+        "cross",
+        "--clearance-mm",
+        "0.5",
+        "--points",
+        "20000",
+        "--out",
+        s(&m),
+        "--observations",
+        s(&obs),
+        "--observation-count",
+        "300",
+        "--true-pose",
+        "0.6,0.05,0.2,0,0,0.3",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (m, obs)
+}
+
+#[test]
+fn register_recovers_the_synthetic_hole_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, obs) = synth(dir.path());
+    let o = pegtwin(&[
+        "register",
+        "--manifold",
+        s(&m),
+        "--observations",
+        s(&obs),
+        "--init",
+        "0.603,0.048,0.203,0.05,-0.04,0.35",
+        "--restarts",
+        "4",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let est: Vec<f64> = v["estimate_base_T_hole"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert!(
+        (est[0] - 0.6).abs() < 1e-4 && (est[1] - 0.05).abs() < 1e-4,
+        "{est:?}"
+    );
+    assert!((est[5] - 0.3).abs() < 0.1f64.to_radians(), "{est:?}");
+    let restarts = v["result"]["restarts"].as_array().unwrap();
+    assert_eq!(restarts.len(), 4);
+    assert!(restarts[0]["iterations"].as_u64().unwrap() >= 1);
+    assert!(v["result"]["time"]["total_s"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn csv_round_trip_keeps_poses_and_normals_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, _) = synth(dir.path());
+    let csv = dir.path().join("m.csv");
+    let back = dir.path().join("back.manifold");
+    assert!(
+        pegtwin(&["manifold", "export", s(&m), "--csv", s(&csv)])
+            .status
+            .success()
+    );
+    let o = pegtwin(&["manifold", "import", s(&csv), "--out", s(&back)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let a = pegtwin::manifold::file::load(&m).unwrap();
+    let b = pegtwin::manifold::file::load(&back).unwrap();
+    assert_eq!(a.points, b.points);
+    assert_eq!(a.normals, b.normals);
+    // A CSV without normals gets them computed: the same as the generator's.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let poses_only: String = text
+        .lines()
+        .map(|l| l.split(',').take(6).collect::<Vec<_>>().join(","))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let csv6 = dir.path().join("poses.csv");
+    std::fs::write(&csv6, poses_only).unwrap();
+    let back6 = dir.path().join("back6.manifold");
+    let o = pegtwin(&["manifold", "import", s(&csv6), "--out", s(&back6)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c = pegtwin::manifold::file::load(&back6).unwrap();
+    assert_eq!(a.normals, c.normals);
+}
+
+#[test]
+fn corrupt_or_foreign_manifold_files_are_named_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, obs) = synth(dir.path());
+    let bytes = std::fs::read(&m).unwrap();
+    let flipped = dir.path().join("flipped.manifold");
+    let mut b = bytes.clone();
+    let mid = b.len() / 2;
+    b[mid] ^= 0x40;
+    std::fs::write(&flipped, &b).unwrap();
+    let newer = dir.path().join("newer.manifold");
+    let mut b = bytes.clone();
+    b[16] = 9;
+    std::fs::write(&newer, &b).unwrap();
+    let cut = dir.path().join("cut.manifold");
+    std::fs::write(&cut, &bytes[..bytes.len() / 3]).unwrap();
+    for (file, expected) in [
+        (&flipped, "checksum mismatch"),
+        (&newer, "format version 9"),
+        (&cut, "checksum"),
+        (&obs, "not a pegtwin manifold"),
+    ] {
+        let o = pegtwin(&["manifold", "info", s(file)]);
+        assert_eq!(o.status.code(), Some(2), "{}", file.display());
+        let e = stderr(&o);
+        assert!(e.contains(expected) && e.contains(s(file)), "{e}");
+    }
+}
+
+#[test]
+fn bad_csv_and_flags_are_clear_errors_with_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, _) = synth(dir.path());
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let header = write("header.csv", "x,y,z,rx,ry,rz\n0,0,0,0,0,0\n");
+    let nan = write(
+        "nan.csv",
+        "x,y,z,roll,pitch,yaw\n0,0,0,0,0,0\n0,0,NaN,0,0,0\n",
+    );
+    let text = write("text.csv", "x,y,z,roll,pitch,yaw\n0,0,0,0,zero,0\n");
+    let few = write(
+        "few.csv",
+        "x,y,z,roll,pitch,yaw\n0,0,0,0,0,0\n0,0,0,0,0,0\n",
+    );
+    let short = write("short.csv", "x,y,z,roll,pitch,yaw\n0,0,0,0,0\n");
+    let cases: [(&Path, &str); 5] = [
+        (&header, "line 1: header is `x,y,z,rx,ry,rz`"),
+        (&nan, "line 3: z = NaN"),
+        (&text, "line 2: pitch = `zero` is not a number"),
+        (&few, "fewer than the k = 12"),
+        (&short, "line 2"),
+    ];
+    for (obs, expected) in cases {
+        let o = pegtwin(&[
+            "register",
+            "--manifold",
+            s(&m),
+            "--observations",
+            s(obs),
+            "--init",
+            "0.6,0.05,0.2,0,0,0.3",
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{}", obs.display());
+        let e = stderr(&o);
+        assert!(e.contains(expected) && e.contains(s(obs)), "{e}");
+    }
+    // A manifold CSV with too few rows for its normals.
+    let o = pegtwin(&[
+        "manifold",
+        "import",
+        s(&few),
+        "--out",
+        s(&dir.path().join("x")),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("fewer than the 12 neighbours"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("x").exists(), "no half-written output");
+    for (flag, value, expected) in [
+        ("--init", "0.6,0.05,0.2,0,0", "six comma-separated numbers"),
+        ("--init", "0.6,0.05,0.2,0,0,yaw", "yaw = `yaw`"),
+        ("--restarts", "0", "restarts"),
+        ("--k", "3", "at least 7"),
+    ] {
+        let mut args = vec!["register", "--manifold", s(&m), "--observations", s(&few)];
+        if flag != "--init" {
+            args.extend(["--init", "0.6,0.05,0.2,0,0,0.3"]);
+        }
+        args.extend([flag, value]);
+        let o = pegtwin(&args);
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}");
+        assert!(stderr(&o).contains(expected), "{}", stderr(&o));
+    }
+}
