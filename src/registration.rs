@@ -282,7 +282,7 @@ fn dot(a: &[f64; 6], b: &[f64; 6]) -> f64 {
 }
 
 /// Spare candidates kept in each observation's neighbour cache.
-const NEIGHBOUR_SPARE: usize = 8;
+const NEIGHBOUR_SPARE: usize = 16;
 
 /// Search state carried from one iteration to the next: warm-started correspondences. The caches
 /// only shorten the searches; every answer is the exact nearest neighbour (see
