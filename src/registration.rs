@@ -309,12 +309,6 @@ impl SearchState {
             misses: 0,
         }
     }
-
-    /// Search the manifold at another resolution from now on.
-    fn set_resolution(&mut self, resolution: Resolution) {
-        self.resolution = resolution;
-        self.reference.iter_mut().for_each(|c| *c = None);
-    }
 }
 
 /// Lines 6-9 for every observation (in parallel; deterministic whatever the thread count).
@@ -367,7 +361,7 @@ fn correspondences(
             // Line 6: nearest reference point and its normal.
             let j = manifold.nearest_cached(resolution, s, ref_cache);
             // Line 7: point-to-point misalignment.
-            let relative = o.inverse() * manifold.points[j].to_iso();
+            let relative = o.inverse() * manifold.transform(j);
             let delta = metric.scaled(&Pose6::from_iso(&relative));
             // Line 8: the k nearest observations.
             let (mut neighbours, fresh, miss) = if renew {
@@ -437,37 +431,52 @@ fn paper_update(cs: &[Correspondence], metric: &PoseMetric, form: PaperUpdate) -
     }
 }
 
-/// Jacobian (scaled coordinates per SI twist) of `delta_i` with respect to the hole-frame update
-/// `exp(xi)`: `delta(xi) = coords(o⁻¹ exp(xi) q) = coords(exp(Ad(o⁻¹) xi) D)`.
-fn misalignment_jacobian(c: &Correspondence, factors: &[f64; 6]) -> Matrix6<f64> {
-    let d = &c.relative;
-    let t_d = d.translation.vector;
-    let (roll, pitch, yaw) = d.rotation.euler_angles();
-    // Left perturbation of D: translation moves by rho + phi x t_D, angles by E⁻¹ phi.
-    let e_inv = rpy_rate_to_angular_velocity(&Vector3::new(roll, pitch, yaw))
-        .try_inverse()
-        .unwrap_or_else(Matrix3::zeros);
-    let mut j_coords = Matrix6::zeros();
-    j_coords
-        .fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&Matrix3::identity());
-    j_coords
-        .fixed_view_mut::<3, 3>(0, 3)
-        .copy_from(&(-skew(&t_d)));
-    j_coords.fixed_view_mut::<3, 3>(3, 3).copy_from(&e_inv);
-    // Adjoint of o⁻¹ for twists ordered (rho, phi): [[R, [t]x R], [0, R]].
-    let inv = c.observation.inverse();
-    let r = inv.rotation.to_rotation_matrix().into_inner();
-    let mut ad = Matrix6::zeros();
-    ad.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
-    ad.fixed_view_mut::<3, 3>(0, 3)
-        .copy_from(&(skew(&inv.translation.vector) * r));
-    ad.fixed_view_mut::<3, 3>(3, 3).copy_from(&r);
-    Matrix6::from_diagonal(&Vector6::from_column_slice(factors)) * j_coords * ad
+/// The transposed Jacobian of `delta_i` with respect to the hole-frame update `exp(xi)`,
+/// applied to the scaled-coordinate vector `n`: `Jᵀ n`, the gradient direction of the residual
+/// `n · delta_i` (scaled coordinates per SI twist).
+///
+/// `delta(xi) = coords(o⁻¹ exp(xi) q) = coords(exp(Ad(o⁻¹) xi) D)`, so `J = S Jc Ad(o⁻¹)` with
+/// `S` the scale factors, `Jc = [[I, -[t_D]x], [0, E⁻¹]]` (a left perturbation of `D` moves its
+/// translation by `rho + phi x t_D` and its angles by `E⁻¹ phi`, `E` the roll-pitch-yaw rate map)
+/// and `Ad(T) = [[R, [t]x R], [0, R]]`. `Jᵀ n` is computed as three matrix-vector products.
+struct MisalignmentJacobian {
+    factors: [f64; 6],
+    t_d: Vector3<f64>,
+    e_inv_t: Matrix3<f64>,
+    r_t: Matrix3<f64>,
+    p: Vector3<f64>,
 }
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+impl MisalignmentJacobian {
+    fn new(c: &Correspondence, factors: &[f64; 6]) -> Self {
+        let d = &c.relative;
+        let (roll, pitch, yaw) = d.rotation.euler_angles();
+        let e_inv = rpy_rate_to_angular_velocity(&Vector3::new(roll, pitch, yaw))
+            .try_inverse()
+            .unwrap_or_else(Matrix3::zeros);
+        let inv = c.observation.inverse();
+        MisalignmentJacobian {
+            factors: *factors,
+            t_d: d.translation.vector,
+            e_inv_t: e_inv.transpose(),
+            r_t: inv.rotation.to_rotation_matrix().into_inner().transpose(),
+            p: inv.translation.vector,
+        }
+    }
+
+    /// `Jᵀ n`.
+    fn transpose_times(&self, n: &[f64; 6]) -> Vector6<f64> {
+        let f = &self.factors;
+        let v1 = Vector3::new(f[0] * n[0], f[1] * n[1], f[2] * n[2]);
+        let v2 = Vector3::new(f[3] * n[3], f[4] * n[4], f[5] * n[5]);
+        // Jcᵀ v = (v1, [t_D]x v1 + E⁻ᵀ v2).
+        let w1 = v1;
+        let w2 = self.t_d.cross(&v1) + self.e_inv_t * v2;
+        // Adᵀ w = (Rᵀ w1, Rᵀ (w2 - p x w1)).
+        let a1 = self.r_t * w1;
+        let a2 = self.r_t * (w2 - self.p.cross(&w1));
+        Vector6::new(a1.x, a1.y, a1.z, a2.x, a2.y, a2.z)
+    }
 }
 
 /// Levenberg damping, relative to the mean diagonal of the normal equations: start, smallest,
@@ -479,8 +488,8 @@ const MAX_REJECTIONS: usize = 3;
 /// The least-squares solver stops when an accepted step lowers the cost by less than this
 /// fraction (progress along weakly observable directions has stalled).
 const COST_TOLERANCE: f64 = 1e-4;
-/// The least-squares solver leaves the coarse level when a step is smaller than this, mm-eq.
-const COARSE_SWITCH_MM: f64 = 0.05;
+/// A stage that thins the observations keeps them all when thinning would leave this few.
+const MIN_COARSE_OBSERVATIONS: usize = 100;
 
 /// The residuals `r_q = n_q · delta` and `r_p = n_p · delta` of every correspondence.
 fn residuals(cs: &[Correspondence]) -> Vec<[f64; 2]> {
@@ -520,9 +529,9 @@ fn normal_equations(
     let mut h = Matrix6::zeros();
     let mut g = Vector6::zeros();
     for (c, r) in cs.iter().zip(res) {
-        let jac = misalignment_jacobian(c, factors);
+        let jac = MisalignmentJacobian::new(c, factors);
         for (n, r) in [(&c.n_q, r[0]), (&c.n_p, r[1])] {
-            let a = jac.transpose() * Vector6::from_column_slice(n);
+            let a = jac.transpose_times(n);
             let w = if r.abs() <= threshold {
                 1.0
             } else {
@@ -573,6 +582,28 @@ impl RunState {
     }
 }
 
+/// Where a run starts: line 3's initial alignment of `observations` by `estimate`, and the
+/// correspondences found there at `resolution`.
+fn aligned(
+    manifold: &Manifold,
+    observations: &[Iso],
+    estimate: Iso,
+    resolution: Resolution,
+    k: usize,
+) -> (RunState, SearchState) {
+    // Line 3: initial alignment.
+    let inv = estimate.inverse();
+    let obs_h: Vec<Iso> = observations.iter().map(|o| inv * o).collect();
+    let mut search = SearchState::new(obs_h.len(), resolution);
+    let cs = correspondences(manifold, &obs_h, k, &mut search);
+    let state = RunState {
+        estimate,
+        obs_h,
+        cs,
+    };
+    (state, search)
+}
+
 /// One run of Algorithm 1 from `start` (`A_T_h,0`), observations `A_T_p`.
 pub fn run_from(
     manifold: &Manifold,
@@ -580,23 +611,18 @@ pub fn run_from(
     start: Iso,
     cfg: &RegistrationConfig,
 ) -> RestartResult {
-    // Line 3: initial alignment.
-    let inv = start.inverse();
-    let obs_h: Vec<Iso> = observations.iter().map(|o| inv * o).collect();
-    let resolution = match cfg.solver {
-        Solver::Paper => Resolution::Full,
-        Solver::LeastSquares => Resolution::Coarse,
-    };
-    let mut search = SearchState::new(obs_h.len(), resolution);
-    let cs = correspondences(manifold, &obs_h, cfg.normal_k, &mut search);
-    let state = RunState {
-        estimate: start,
-        obs_h,
-        cs,
-    };
     let (state, step_mm) = match cfg.solver {
-        Solver::Paper => run_paper(manifold, state, &mut search, cfg),
-        Solver::LeastSquares => run_least_squares(manifold, state, &mut search, cfg),
+        Solver::Paper => {
+            let (state, mut search) = aligned(
+                manifold,
+                observations,
+                start,
+                Resolution::Full,
+                cfg.normal_k,
+            );
+            run_paper(manifold, state, &mut search, cfg)
+        }
+        Solver::LeastSquares => run_least_squares(manifold, observations, start, cfg),
     };
     RestartResult {
         initial: Pose6::from_iso(&start),
@@ -634,55 +660,99 @@ fn run_paper(
     (state, steps)
 }
 
-/// Levenberg-Marquardt on the symmetric point-to-plane residuals, coarse level first. A step is
-/// kept only if it lowers the Huber cost with the correspondences found at the new pose; otherwise
-/// the damping grows and the step shrinks. Every proposed step counts as an iteration.
+/// The least-squares solver's stages, coarse to fine: (every how-many-th observation, manifold
+/// resolution, the step size below which the stage hands over, mm-eq). Far from the manifold a
+/// nearest-neighbour search visits much of the tree and every observation costs the same; a
+/// quarter of the observations against a sixty-fourth of the manifold brings the estimate close
+/// cheaply, all observations against the coarse manifold settle the weakly observable directions,
+/// and the full manifold finishes.
+const STAGES: [(usize, Resolution, Option<f64>); 3] = [
+    (4, Resolution::Coarse, Some(0.1)),
+    (1, Resolution::Coarse, Some(0.05)),
+    (1, Resolution::Full, None),
+];
+
+/// Levenberg-Marquardt on the symmetric point-to-plane residuals through [`STAGES`]; each stage
+/// but the last may use at most a third of the iterations. Every proposed step counts as an
+/// iteration.
 fn run_least_squares(
+    manifold: &Manifold,
+    observations: &[Iso],
+    start: Iso,
+    cfg: &RegistrationConfig,
+) -> (RunState, Vec<f64>) {
+    let mut steps = Vec::with_capacity(cfg.iterations);
+    let mut estimate = start;
+    let mut last = None;
+    for (stride, resolution, hand_over) in STAGES {
+        let subset: Vec<Iso> = observations.iter().step_by(stride).copied().collect();
+        let obs = if subset.len() > cfg.normal_k.max(MIN_COARSE_OBSERVATIONS) {
+            subset
+        } else {
+            observations.to_vec()
+        };
+        let (state, mut search) = aligned(manifold, &obs, estimate, resolution, cfg.normal_k);
+        let budget = match hand_over {
+            Some(_) => cfg.iterations.div_ceil(3).min(cfg.iterations - steps.len()),
+            None => cfg.iterations - steps.len(),
+        };
+        let tolerance = hand_over.unwrap_or(cfg.tolerance_mm);
+        let (state, stage_steps) =
+            levenberg_marquardt(manifold, state, &mut search, cfg, budget, tolerance);
+        steps.extend(stage_steps);
+        estimate = state.estimate;
+        last = Some(state);
+    }
+    (last.expect("at least one stage"), steps)
+}
+
+/// Levenberg-Marquardt iterations from `state`: a step is kept only if it lowers the Huber cost
+/// with the correspondences found at the new pose; otherwise the damping grows and the step
+/// shrinks. Stops after `budget` steps, when a step is below `tolerance_mm`, when a kept step
+/// lowers the cost by less than [`COST_TOLERANCE`], or after [`MAX_REJECTIONS`] refusals in a row.
+fn levenberg_marquardt(
     manifold: &Manifold,
     mut state: RunState,
     search: &mut SearchState,
     cfg: &RegistrationConfig,
+    budget: usize,
+    tolerance_mm: f64,
 ) -> (RunState, Vec<f64>) {
     let metric = manifold.meta.metric;
     let factors = metric.factors();
-    let mut steps = Vec::with_capacity(cfg.iterations);
+    let mut steps = Vec::with_capacity(budget);
     let mut damping = LM_DAMPING[0];
     let mut rejections = 0;
-    let mut res = residuals(&state.cs);
-    let mut threshold = huber_threshold(&res, cfg.huber_k);
-    let mut system = normal_equations(&state.cs, &res, &factors, threshold);
-    while steps.len() < cfg.iterations {
-        let update = damped_step(&system.0, &system.1, damping);
+    let linearise = |state: &RunState| {
+        let res = residuals(&state.cs);
+        let threshold = huber_threshold(&res, cfg.huber_k);
+        let (h, g) = normal_equations(&state.cs, &res, &factors, threshold);
+        (res, threshold, h, g)
+    };
+    let (mut res, mut threshold, mut h, mut g) = linearise(&state);
+    while steps.len() < budget {
+        let update = damped_step(&h, &g, damping);
         let step = metric.twist_norm(&se3_log(&update));
         steps.push(step);
         let trial = state.updated(&update, manifold, cfg.normal_k, search);
-        let trial_res = residuals(&trial.cs);
         let (old_cost, new_cost) = (
             robust_cost(&res, threshold),
-            robust_cost(&trial_res, threshold),
+            robust_cost(&residuals(&trial.cs), threshold),
         );
-        let accepted = new_cost <= old_cost;
-        rejections = if accepted { 0 } else { rejections + 1 };
-        let converged = if accepted {
+        let done = if new_cost <= old_cost {
             state = trial;
+            (res, threshold, h, g) = linearise(&state);
+            rejections = 0;
             damping = (damping * 0.1).max(LM_DAMPING[1]);
-            step < cfg.tolerance_mm || old_cost - new_cost < COST_TOLERANCE * old_cost
+            step < tolerance_mm || old_cost - new_cost < COST_TOLERANCE * old_cost
         } else {
+            rejections += 1;
             damping *= 10.0;
-            damping > LM_DAMPING[2] || rejections >= MAX_REJECTIONS || step < cfg.tolerance_mm
+            damping > LM_DAMPING[2] || rejections >= MAX_REJECTIONS || step < tolerance_mm
         };
-        let coarse = search.resolution == Resolution::Coarse;
-        if coarse && (converged || step < COARSE_SWITCH_MM || 2 * steps.len() >= cfg.iterations) {
-            // Continue at full resolution from here.
-            search.set_resolution(Resolution::Full);
-            state.cs = correspondences(manifold, &state.obs_h, cfg.normal_k, search);
-            damping = LM_DAMPING[0];
-        } else if converged || !step.is_finite() {
+        if done || !step.is_finite() {
             break;
         }
-        res = residuals(&state.cs);
-        threshold = huber_threshold(&res, cfg.huber_k);
-        system = normal_equations(&state.cs, &res, &factors, threshold);
     }
     (state, steps)
 }
@@ -795,7 +865,7 @@ mod tests {
             n_q: [0.0; 6],
             n_p: [0.0; 6],
         };
-        let jac = misalignment_jacobian(&c, &metric.factors());
+        let jac = MisalignmentJacobian::new(&c, &metric.factors());
         let coords = |xi: &Vector6<f64>| {
             let p = metric.scaled(&Pose6::from_iso(&(o.inverse() * se3_exp(xi) * q)));
             Vector6::from_column_slice(&p)
@@ -805,8 +875,14 @@ mod tests {
             let mut e = Vector6::zeros();
             e[k] = h;
             let fd = (coords(&e) - coords(&-e)) / (2.0 * h);
-            let err = (fd - jac.column(k)).norm() / fd.norm().max(1.0);
-            assert!(err < 1e-5, "column {k}: {fd} vs {}", jac.column(k));
+            // Column k of J is (Jᵀ e_i)_k over the rows i.
+            let col = Vector6::from_fn(|i, _| {
+                let mut unit = [0.0; 6];
+                unit[i] = 1.0;
+                jac.transpose_times(&unit)[k]
+            });
+            let err = (fd - col).norm() / fd.norm().max(1.0);
+            assert!(err < 1e-5, "column {k}: {fd} vs {col}");
         }
     }
 }

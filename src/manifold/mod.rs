@@ -14,7 +14,7 @@ pub mod file;
 pub mod synthetic;
 
 use crate::error::{Error, Result};
-use crate::pose::{Pose6, PoseMetric};
+use crate::pose::{Iso, Pose6, PoseMetric};
 use kiddo::SquaredEuclidean;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use nalgebra::{Matrix6, SymmetricEigen, Vector6};
@@ -309,6 +309,7 @@ pub struct Manifold {
     /// Unit normals in scaled coordinates, one per point.
     pub normals: Vec<[f64; 6]>,
     scaled: Vec<[f64; 6]>,
+    transforms: Vec<Iso>,
     index: ScaledIndex,
     coarse: Option<Subset>,
 }
@@ -333,11 +334,13 @@ impl Manifold {
         let index = ScaledIndex::new(&scaled);
         let normals = cloud_normals(&scaled, &index, meta.normal_k);
         let coarse = coarse_subset(&scaled);
+        let transforms = points.iter().map(Pose6::to_iso).collect();
         Ok(Manifold {
             meta,
             points,
             normals,
             scaled,
+            transforms,
             index,
             coarse,
         })
@@ -360,11 +363,13 @@ impl Manifold {
         let scaled: Vec<[f64; 6]> = points.iter().map(|p| meta.metric.scaled(p)).collect();
         let index = ScaledIndex::new(&scaled);
         let coarse = coarse_subset(&scaled);
+        let transforms = points.iter().map(Pose6::to_iso).collect();
         Ok(Manifold {
             meta,
             points,
             normals,
             scaled,
+            transforms,
             index,
             coarse,
         })
@@ -378,6 +383,11 @@ impl Manifold {
     /// Whether the manifold is empty (never true for a constructed manifold).
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
+    }
+
+    /// Point `i` as a rigid transform `hole_T_peg`.
+    pub fn transform(&self, i: usize) -> &Iso {
+        &self.transforms[i]
     }
 
     /// Scaled coordinates of point `i`.
