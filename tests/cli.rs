@@ -1,17 +1,7 @@
 //! The command line: outputs, files, exit codes and error messages.
 
-use std::process::{Command, Output};
-
-fn pegtwin(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pegtwin"))
-        .args(args)
-        .output()
-        .expect("pegtwin runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{pegtwin, stderr};
 
 #[test]
 fn geometry_list_names_the_five_built_ins() {

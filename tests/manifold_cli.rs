@@ -2,18 +2,9 @@
 //! line: round trips, the estimate, and clear errors on bad input.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn pegtwin(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pegtwin"))
-        .args(args)
-        .output()
-        .expect("pegtwin runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{pegtwin, stderr};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

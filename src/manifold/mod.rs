@@ -329,21 +329,7 @@ fn coarse_subset(scaled: &[[f64; 6]]) -> Option<Subset> {
 impl Manifold {
     /// A manifold from poses; normals are computed with `meta.normal_k` neighbours.
     pub fn from_points(points: Vec<Pose6>, meta: ManifoldMeta) -> Result<Self> {
-        check_points(&points, meta.normal_k)?;
-        let scaled: Vec<[f64; 6]> = points.iter().map(|p| meta.metric.scaled(p)).collect();
-        let index = ScaledIndex::new(&scaled);
-        let normals = cloud_normals(&scaled, &index, meta.normal_k);
-        let coarse = coarse_subset(&scaled);
-        let transforms = points.iter().map(Pose6::to_iso).collect();
-        Ok(Manifold {
-            meta,
-            points,
-            normals,
-            scaled,
-            transforms,
-            index,
-            coarse,
-        })
+        Self::build(points, None, meta)
     }
 
     /// A manifold from poses and their precomputed normals (read from a file).
@@ -352,26 +338,33 @@ impl Manifold {
         normals: Vec<[f64; 6]>,
         meta: ManifoldMeta,
     ) -> Result<Self> {
+        Self::build(points, Some(normals), meta)
+    }
+
+    fn build(
+        points: Vec<Pose6>,
+        normals: Option<Vec<[f64; 6]>>,
+        meta: ManifoldMeta,
+    ) -> Result<Self> {
         check_points(&points, meta.normal_k)?;
-        if normals.len() != points.len() {
+        if let Some(n) = normals.as_ref().filter(|n| n.len() != points.len()) {
             return Err(Error::Input(format!(
                 "manifold has {} points but {} normals",
                 points.len(),
-                normals.len()
+                n.len()
             )));
         }
         let scaled: Vec<[f64; 6]> = points.iter().map(|p| meta.metric.scaled(p)).collect();
         let index = ScaledIndex::new(&scaled);
-        let coarse = coarse_subset(&scaled);
-        let transforms = points.iter().map(Pose6::to_iso).collect();
+        let normals = normals.unwrap_or_else(|| cloud_normals(&scaled, &index, meta.normal_k));
         Ok(Manifold {
+            coarse: coarse_subset(&scaled),
+            transforms: points.iter().map(Pose6::to_iso).collect(),
             meta,
             points,
             normals,
             scaled,
-            transforms,
             index,
-            coarse,
         })
     }
 
