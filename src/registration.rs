@@ -32,10 +32,17 @@
 //! residuals `r_q,i = n_q · delta_i` and `r_p,i = n_p · delta_i`, linearised in the Lie algebra of the
 //! hole-frame update (analytic Jacobian, tested against finite differences), with a Huber loss
 //! (threshold `huber_k` robust standard deviations, the standard deviation estimated from the
-//! median absolute residual) and a small Levenberg damping so that weakly observable directions
-//! stay bounded. The paper's update moves each observation by a projection of its error onto two
-//! normals and averages; along directions that few normals see, it takes a small fraction of the
-//! step each iteration. Gauss-Newton takes the whole step at once.
+//! median absolute residual) and Levenberg damping: a step is kept only if it lowers the cost at
+//! the correspondences of the new pose, so weakly observable directions cannot run away. It runs
+//! coarse to fine through the stages of `STAGES`. The paper's update moves each observation by a projection of
+//! its error onto two normals and averages; along directions that few normals see, it takes a
+//! small fraction of the step each iteration. Gauss-Newton takes the whole step at once.
+//!
+//! # Correspondences
+//!
+//! Both solvers search exactly (Lines 6 and 8 are true nearest neighbours), warm-started from the
+//! previous iteration through [`NeighbourCache`]: the answer is read from the cache when the cache
+//! proves it, found by a tree search otherwise.
 //!
 //! # Restarts
 //!

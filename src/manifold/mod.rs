@@ -8,7 +8,7 @@
 //! are unit vectors in scaled coordinates; their sign is fixed so that the largest-magnitude
 //! component is positive (registration only uses `(d . n) n`, which does not depend on it).
 //!
-//! Files: [`file`] (versioned binary with a checksum, and CSV). Test data: [`synthetic`].
+//! Files: [`self::file`] (versioned binary with a checksum, and CSV). Test data: [`synthetic`].
 
 pub mod file;
 pub mod synthetic;
@@ -288,7 +288,7 @@ const COARSE_MIN_POINTS: usize = 32_000;
 /// Which points a nearest-neighbour search considers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Resolution {
-    /// Every [`COARSE_STRIDE`]-th point (all points for small manifolds): cheap far from the
+    /// Every 64th point (all points for small manifolds): cheap far from the
     /// manifold, for the first iterations of a coarse-to-fine solver.
     Coarse,
     /// Every point.
