@@ -373,7 +373,7 @@ fn correspondences(
             // Line 8: the k nearest observations.
             let (mut neighbours, fresh, miss) = if renew {
                 let c = index().cache(s, m, None);
-                (c_first(&c, k), Some(c), false)
+                (c.candidates()[..k].to_vec(), Some(c), false)
             } else {
                 match nb_cache
                     .as_ref()
@@ -403,11 +403,6 @@ fn correspondences(
         state.neighbours = results.iter().map(|r| r.1.clone()).collect();
     }
     results.into_iter().map(|r| r.0).collect()
-}
-
-/// The first `k` candidates of a fresh cache (its nearest points).
-fn c_first(c: &NeighbourCache, k: usize) -> Vec<usize> {
-    c.candidates()[..k.min(c.candidates().len())].to_vec()
 }
 
 /// Line 10: the symmetric point-to-plane misalignment, scaled coordinates.
@@ -746,9 +741,9 @@ fn levenberg_marquardt(
             robust_cost(&res, threshold),
             robust_cost(&residuals(&trial.cs), threshold),
         );
-        let done = if new_cost <= old_cost {
+        let accepted = new_cost <= old_cost;
+        let done = if accepted {
             state = trial;
-            (res, threshold, h, g) = linearise(&state);
             rejections = 0;
             damping = (damping * 0.1).max(LM_DAMPING[1]);
             step < tolerance_mm || old_cost - new_cost < COST_TOLERANCE * old_cost
@@ -759,6 +754,9 @@ fn levenberg_marquardt(
         };
         if done || !step.is_finite() {
             break;
+        }
+        if accepted {
+            (res, threshold, h, g) = linearise(&state);
         }
     }
     (state, steps)

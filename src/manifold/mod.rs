@@ -396,16 +396,6 @@ impl Manifold {
         &self.transforms[i]
     }
 
-    /// Scaled coordinates of point `i`.
-    pub fn scaled(&self, i: usize) -> &[f64; 6] {
-        &self.scaled[i]
-    }
-
-    /// Index and squared scaled distance of the manifold point nearest to `q` (scaled coordinates).
-    pub fn nearest(&self, q: &[f64; 6]) -> (usize, f64) {
-        self.index.nearest(q)
-    }
-
     /// Index of the manifold point nearest to `q` (scaled coordinates) at a resolution, answered
     /// from `cache` when it guarantees the answer, else by a tree search that refreshes the cache.
     pub fn nearest_cached(
