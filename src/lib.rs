@@ -7,5 +7,6 @@ pub mod geometry;
 pub mod manifold;
 pub mod pose;
 pub mod registration;
+pub mod robot;
 pub mod sim;
 pub mod validate;
