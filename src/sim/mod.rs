@@ -9,6 +9,7 @@
 //! further at speed (`set_prediction_for_speed`), and rapier's swept CCD off (it treats a body with 0.3 mm
 //! chamfer pieces as "fast" at any speed and sweeps every piece: 54 % of the time of a `gear` step).
 
+pub mod arm;
 pub mod contact;
 pub mod penetration;
 
