@@ -1,12 +1,16 @@
 //! pegtwin: a digital twin for robotic peg-in-hole assembly of complex parts by contact-manifold
 //! pose estimation (Negi et al.). See README.md for the pipeline and the commands.
 
+pub mod cell;
 pub mod cli;
+pub mod control;
+pub mod diagnostics;
 pub mod error;
 pub mod geometry;
 pub mod manifold;
 pub mod pose;
 pub mod registration;
 pub mod robot;
+pub mod sensing;
 pub mod sim;
 pub mod validate;

@@ -319,8 +319,13 @@ impl RobotModel {
 
     /// Joint-space inertia M(q), kg m^2: links and tool, plus the rotor inertia on the diagonal.
     pub fn mass_matrix(&self, k: &Kinematics) -> DMatrix<f64> {
+        self.link_mass_matrix(k) + DMatrix::from_diagonal(&DVector::from_row_slice(&self.armature))
+    }
+
+    /// Joint-space inertia of the links and tool alone (what the joint torque sensors carry).
+    pub fn link_mass_matrix(&self, k: &Kinematics) -> DMatrix<f64> {
         let n = self.dof();
-        let mut m = DMatrix::from_diagonal(&DVector::from_row_slice(&self.armature));
+        let mut m = DMatrix::zeros(n, n);
         for (i, link) in self.link_inertials().iter().enumerate() {
             let com = k.frames[i] * link.com;
             let jac = self.point_jacobian(k, &com, i);
@@ -330,7 +335,6 @@ impl RobotModel {
             let inertia = r.matrix() * link.inertia * r.matrix().transpose();
             m += link.mass_kg * jv.transpose() * jv + jw.transpose() * inertia * jw;
         }
-        debug_assert_eq!(m.nrows(), n);
         m
     }
 
@@ -351,6 +355,45 @@ impl RobotModel {
             .try_inverse()
             .unwrap_or_else(nalgebra::Matrix6::zeros)
     }
+}
+
+impl RobotModel {
+    /// Joint positions that put the TCP at `target` (`base_T_tcp`), by damped least squares from
+    /// `seed`, within 1e-9 m and 1e-9 rad; an error if the pose is out of reach or the solution
+    /// leaves the joint limits.
+    pub fn inverse_kinematics(&self, target: &Iso, seed: &[f64]) -> Result<Vec<f64>> {
+        let mut q = seed.to_vec();
+        for _ in 0..200 {
+            let k = self.kinematics(&q);
+            let tcp = self.tcp_from(&k);
+            let dp = target.translation.vector - tcp.translation.vector;
+            let dr = (target.rotation * tcp.rotation.inverse()).scaled_axis();
+            if dp.norm() < 1e-9 && dr.norm() < 1e-9 {
+                self.check_q(&q)?;
+                return Ok(q);
+            }
+            let err = DVector::from_row_slice(&[dp.x, dp.y, dp.z, dr.x, dr.y, dr.z]);
+            let jac = self.tcp_jacobian(&k);
+            let jjt = &jac * jac.transpose() + DMatrix::identity(6, 6) * 1e-6;
+            let step = jac.transpose()
+                * jjt
+                    .cholesky()
+                    .ok_or_else(|| unreachable_pose(target))?
+                    .solve(&err);
+            for (qi, s) in q.iter_mut().zip(step.iter()) {
+                *qi += s.clamp(-0.2, 0.2);
+            }
+        }
+        Err(unreachable_pose(target))
+    }
+}
+
+fn unreachable_pose(target: &Iso) -> Error {
+    let p = target.translation.vector;
+    Error::Input(format!(
+        "TCP pose at ({:.4}, {:.4}, {:.4}) m is out of the robot's reach from the seed configuration",
+        p.x, p.y, p.z
+    ))
 }
 
 /// An isometry from URDF-style `xyz` and `rpy` (R = Rz(yaw) Ry(pitch) Rx(roll)).

@@ -1,0 +1,298 @@
+//! The cell: the robot base on a table at the world origin, the hole fixture standing on the
+//! table in front of it, the peg rigidly on the flange, the controller and the sensors, stepped
+//! together. One control cycle (default 1 kHz) reads the sensors, runs the estimator and the
+//! controller; the torques are held over the physics steps of the cycle.
+//!
+//! Frames: `world` = `base` (the base stands upright at the origin, z up), `hole` (mouth centre,
+//! z out of the hole), `tcp` = the peg frame (tip centre, z up the peg, so pointing at the flange
+//! when the peg hangs from it).
+
+use crate::control::{Controller, ControllerParams, ImpedanceGains, Mode};
+use crate::error::{Error, Result};
+use crate::geometry::PartPair;
+use crate::robot::{Inertial, Iso, RobotModel, Tool};
+use crate::sensing::{SensorParams, Sensors, Wrench6};
+use crate::sim::arm::Arm;
+use crate::sim::{
+    PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
+    set_prediction_for_speed,
+};
+use nalgebra::{DVector, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
+use rapier3d::prelude::{ColliderBuilder, ColliderHandle, PhysicsWorld};
+use serde::{Deserialize, Serialize};
+
+/// A joint configuration with the tool pointing down in front of the robot (facts sheet 1.4).
+pub const TOOL_DOWN_Q: [f64; 7] = [
+    0.0,
+    std::f64::consts::FRAC_PI_4,
+    0.0,
+    -std::f64::consts::FRAC_PI_2,
+    0.0,
+    std::f64::consts::FRAC_PI_4,
+    0.0,
+];
+
+/// Cell layout and the parameters of everything in it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CellParams {
+    #[serde(skip)]
+    pub physics: PhysicsParams,
+    pub controller: ControllerParams,
+    pub sensors: SensorParams,
+    /// Nominal hole mouth position in the base frame, x and y, m.
+    pub hole_xy_m: [f64; 2],
+    /// Mass of the peg with its holder, kg.
+    pub peg_mass_kg: f64,
+}
+
+impl Default for CellParams {
+    fn default() -> Self {
+        CellParams {
+            physics: PhysicsParams::default(),
+            controller: ControllerParams::default(),
+            sensors: SensorParams::default(),
+            hole_xy_m: [0.55, 0.0],
+            peg_mass_kg: crate::validate::FREE_PEG_MASS_KG,
+        }
+    }
+}
+
+/// Length of a peg from its tip (z = 0) to its top face, m.
+pub fn peg_length(pair: &PartPair) -> f64 {
+    pair.peg.bounds().1.z
+}
+
+/// `flange_T_tcp` for a peg held by its top face, tip away from the flange.
+pub fn flange_t_tcp(pair: &PartPair) -> Iso {
+    Iso::from_parts(
+        Translation3::new(0.0, 0.0, peg_length(pair)),
+        UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0),
+    )
+}
+
+/// The nominal hole pose, base frame: the fixture's bottom on the table (z = 0), hole z up.
+pub fn nominal_hole_pose(pair: &PartPair, params: &CellParams) -> Iso {
+    let height = -pair.hole.bounds().0.z;
+    Iso::translation(params.hole_xy_m[0], params.hole_xy_m[1], height)
+}
+
+/// The TCP pose (base frame) of a peg aligned with a hole at `base_t_hole`, its tip `depth_m`
+/// below the mouth (negative: above).
+pub fn tcp_in_hole(base_t_hole: &Iso, depth_m: f64) -> Iso {
+    base_t_hole * Iso::translation(0.0, 0.0, -depth_m)
+}
+
+/// The simulated cell.
+pub struct Cell {
+    pub world: PhysicsWorld,
+    pub arm: Arm,
+    /// The robot model with the peg as its tool.
+    pub model: RobotModel,
+    pub controller: Controller,
+    pub sensors: Sensors,
+    /// True hole pose, base frame (`None`: no fixture, free space).
+    pub base_t_hole: Option<Iso>,
+    peg: ColliderHandle,
+    peg_reach_m: f64,
+    steps_per_cycle: usize,
+    steps: u64,
+    /// Torques being applied, N m.
+    tau: DVector<f64>,
+    /// Link-side joint torques of the last physics step, N m.
+    tau_link: DVector<f64>,
+    /// An external wrench pushed onto the TCP (base frame, torque about the TCP), for diagnostics.
+    pub push: Option<Wrench6>,
+}
+
+impl Cell {
+    /// Builds the cell with the arm at rest at `start_tcp` (base frame) under Cartesian impedance
+    /// with `gains`; `base_t_hole: None` leaves the fixture out.
+    pub fn new(
+        pair: &PartPair,
+        robot: RobotModel,
+        params: &CellParams,
+        base_t_hole: Option<Iso>,
+        start_tcp: &Iso,
+        gains: ImpedanceGains,
+        seed: u64,
+    ) -> Result<Cell> {
+        if !crate::control::is_positive(params.peg_mass_kg) {
+            return Err(Error::Input(format!(
+                "peg mass {} kg: expected a positive value",
+                params.peg_mass_kg
+            )));
+        }
+        let dt = params.physics.dt_s;
+        let period = 1.0 / params.controller.rate_hz;
+        let steps_per_cycle = (period / dt).round() as usize;
+        if steps_per_cycle == 0 || ((steps_per_cycle as f64) * dt - period).abs() > 1e-9 {
+            return Err(Error::Input(format!(
+                "control period {period} s is not a whole number of physics steps of {dt} s"
+            )));
+        }
+        let friction = params.physics.friction;
+        let tcp_on_flange = flange_t_tcp(pair);
+        let peg_props = compound_collider(&pair.peg, friction)
+            .mass(params.peg_mass_kg as f32)
+            .build()
+            .mass_properties();
+        let tool_inertial = Inertial {
+            mass_kg: peg_props.mass() as f64,
+            com: Point3::from(crate::sim::v64(peg_props.local_com)),
+            inertia: nalgebra::Matrix3::from(peg_props.reconstruct_inertia_matrix()).cast::<f64>(),
+        }
+        .transformed(&tcp_on_flange);
+        let model = robot.with_tool(Tool {
+            inertial: tool_inertial,
+            flange_t_tcp: tcp_on_flange,
+        });
+        let q0 = model.inverse_kinematics(start_tcp, &TOOL_DOWN_Q)?;
+
+        let mut world = params.physics.new_world();
+        add_table(&mut world);
+        if let Some(hole) = &base_t_hole {
+            add_fixed(&mut world, &pair.hole, hole, friction);
+        }
+        let peg_collider = compound_collider(&pair.peg, friction).density(0.0);
+        let arm = Arm::insert(
+            &mut world,
+            &model,
+            Iso::identity(),
+            &q0,
+            vec![(tcp_on_flange, peg_collider)],
+        );
+        let peg = *world.bodies[arm.last_body()]
+            .colliders()
+            .last()
+            .expect("the peg collider");
+        let (lo, hi) = pair.peg.bounds();
+        let peg_reach_m = (hi - lo).norm() + tcp_on_flange.translation.vector.norm();
+        let controller = Controller::new(
+            params.controller.clone(),
+            Mode::CartesianImpedance {
+                gains,
+                target: *start_tcp,
+            },
+            &q0,
+        )?;
+        let n = model.dof();
+        let sensors = Sensors::new(params.sensors.clone(), n, seed)?;
+        let mut cell = Cell {
+            world,
+            arm,
+            model,
+            controller,
+            sensors,
+            base_t_hole,
+            peg,
+            peg_reach_m,
+            steps_per_cycle,
+            steps: 0,
+            tau: DVector::zeros(n),
+            tau_link: DVector::zeros(n),
+            push: None,
+        };
+        // Start holding the arm: the task torque is zero at the target, gravity is compensated.
+        let k = cell.model.kinematics(&q0);
+        cell.tau = cell
+            .model
+            .gravity_torques(&k, &Vector3::from(params.controller.gravity));
+        cell.tau_link = cell.tau.clone();
+        Ok(cell)
+    }
+
+    /// Simulated time, s.
+    pub fn time_s(&self) -> f64 {
+        self.steps as f64 * self.world.integration_parameters.dt as f64
+    }
+
+    /// Advances one physics step (running a control cycle first when one is due).
+    pub fn step(&mut self) {
+        if self.steps.is_multiple_of(self.steps_per_cycle as u64) {
+            self.control_cycle();
+        }
+        let dt = self.world.integration_parameters.dt as f64;
+        self.arm.apply_torques(&mut self.world, self.tau.as_slice());
+        if let Some(w) = self.push {
+            self.apply_push(&w);
+        }
+        let qd_before = self.arm.qd(&self.world);
+        let speed = max_point_speed(&self.world, self.arm.last_body(), self.peg_reach_m);
+        set_prediction_for_speed(&mut self.world, speed);
+        self.world.step();
+        self.arm.clear_torques(&mut self.world);
+        let qd = self.arm.qd(&self.world);
+        for i in 0..qd.len() {
+            let qdd = (qd[i] - qd_before[i]) / dt;
+            self.tau_link[i] =
+                self.tau[i] - self.model.armature[i] * qdd - self.model.joints[i].damping * qd[i];
+        }
+        self.steps += 1;
+    }
+
+    /// Runs `seconds` of simulated time.
+    pub fn run(&mut self, seconds: f64) {
+        let n = (seconds / self.world.integration_parameters.dt as f64).round() as usize;
+        for _ in 0..n {
+            self.step();
+        }
+    }
+
+    fn control_cycle(&mut self) {
+        let period = 1.0 / self.controller.params.rate_hz;
+        let q = self.arm.q(&self.world);
+        let qd = self.arm.qd(&self.world);
+        let q_meas = self.sensors.read_q(&q);
+        let tau_meas = self.sensors.read_torques(&self.tau_link, period);
+        let k = self.model.kinematics(&q_meas);
+        let gravity = Vector3::from(self.controller.params.gravity);
+        self.sensors
+            .estimate(&self.model, &k, &qd, &tau_meas, &gravity, period);
+        self.tau = self.controller.update(&self.model, &q_meas, &qd).tau;
+    }
+
+    fn apply_push(&mut self, w: &Wrench6) {
+        let tcp = self.tcp_pose();
+        let body = &mut self.world.bodies[self.arm.last_body()];
+        let at = crate::sim::v32(&tcp.translation.vector);
+        body.add_force_at_point(
+            crate::sim::v32(&w.fixed_rows::<3>(0).into_owned()),
+            at,
+            true,
+        );
+        body.add_torque(crate::sim::v32(&w.fixed_rows::<3>(3).into_owned()), true);
+    }
+
+    /// Joint torques being applied, N m.
+    pub fn torques(&self) -> &DVector<f64> {
+        &self.tau
+    }
+
+    /// True joint positions, rad.
+    pub fn q(&self) -> Vec<f64> {
+        self.arm.q(&self.world)
+    }
+
+    /// True TCP pose, base frame.
+    pub fn tcp_pose(&self) -> Iso {
+        self.model.tcp_pose(&self.q())
+    }
+
+    /// True contact wrench on the peg from the physics (base frame, torque about the TCP): for
+    /// validating the estimate, never used by the method.
+    pub fn true_contact_wrench(&self) -> Wrench6 {
+        let tcp = self.tcp_pose().translation.vector;
+        let w = contact_wrench(&self.world, self.peg, tcp);
+        let r = self.arm.world_t_base.rotation.inverse();
+        let (f, t) = (r * w.force, r * w.torque);
+        Vector6::new(f.x, f.y, f.z, t.x, t.y, t.z)
+    }
+}
+
+/// The table: a fixed slab with its top at z = 0 (the base stands on it).
+fn add_table(world: &mut PhysicsWorld) {
+    let table = ColliderBuilder::cuboid(0.8, 0.8, 0.025)
+        .translation(crate::sim::v32(&Vector3::new(0.4, 0.0, -0.025)));
+    world.insert_collider(table, None);
+}

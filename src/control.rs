@@ -1,0 +1,491 @@
+//! Torque-level controllers with KUKA Sunrise semantics (facts sheet section 4.1 and 5).
+//!
+//! **Cartesian impedance** (`CartesianImpedanceControlMode`): per-axis stiffness (0-5000 N/m,
+//! 0-300 N m/rad) and damping ratio (0.1-1.0), both in the TCP frame, as Sunrise parametrises
+//! `CartDOF.X..C`. The damping ratio becomes a damping matrix through the Cartesian inertia
+//! Lambda(q) by the factorisation design of Albu-Schaeffer et al. (ICRA 2003, facts sheet 5.2):
+//! `D = Lambda^1/2 Xi K^1/2 + K^1/2 Xi Lambda^1/2`, so that 0.7 means 0.7 of critical damping of
+//! the real arm, not of a unit mass. The spring-damper wrench is clamped per axis to the max
+//! control force; an additional (feed-forward) wrench is added after the clamp. A null-space
+//! stiffness and damping ratio pull the elbow to a reference posture through the dynamically
+//! consistent projector `I - J^T Lambda J M^-1`, which leaves the TCP's stiffness untouched.
+//!
+//! **Joint position** (`PositionControlMode`): a stiff joint-space PD (default 2000 N m/rad, as
+//! MuJoCo Menagerie's iiwa servos), damping ratio 1 on the joint-space inertia diagonal.
+//!
+//! Both produce the torque on top of gravity; like the real controller (which adds gravity
+//! internally), [`Controller`] adds g(q), then limits the rate of change of the commanded torque
+//! per cycle and clamps each joint to its torque limit. Switching mode re-targets the new mode at
+//! the current pose, and the rate limit carries the torque across the switch without a jump.
+
+use crate::error::{Error, Result};
+use crate::robot::{GRAVITY_UPRIGHT, Iso, Kinematics, RobotModel};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, SymmetricEigen, Vector3, Vector6};
+use serde::{Deserialize, Serialize};
+
+/// Sunrise ranges (facts sheet 4.1).
+pub const TRANSLATIONAL_STIFFNESS_RANGE: (f64, f64) = (0.0, 5000.0);
+pub const ROTATIONAL_STIFFNESS_RANGE: (f64, f64) = (0.0, 300.0);
+pub const DAMPING_RATIO_RANGE: (f64, f64) = (0.1, 1.0);
+pub const NULL_SPACE_DAMPING_RANGE: (f64, f64) = (0.3, 1.0);
+
+const AXES: [&str; 6] = ["x", "y", "z", "a (about z)", "b (about y)", "c (about x)"];
+
+/// Cartesian impedance parameters, Sunrise semantics. Stiffness and damping act in the TCP frame:
+/// index 0-2 translation x, y, z (N/m), 3-5 rotation about x, y, z (N m/rad).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImpedanceGains {
+    pub stiffness: [f64; 6],
+    pub damping_ratio: [f64; 6],
+    /// Null-space stiffness, N m/rad (>= 0).
+    pub null_stiffness: f64,
+    /// Null-space damping ratio (0.3-1.0).
+    pub null_damping_ratio: f64,
+    /// Largest spring-damper force and torque per axis (TCP frame), N and N m; `None`: unlimited.
+    pub max_control_force: Option<[f64; 6]>,
+    /// Feed-forward wrench added at the TCP (TCP frame), N and N m.
+    pub additional_force: [f64; 6],
+}
+
+impl Default for ImpedanceGains {
+    /// The Sunrise defaults: 2000 N/m, 200 N m/rad, damping 0.7, null space 100 N m/rad and 0.7.
+    fn default() -> Self {
+        ImpedanceGains {
+            stiffness: [2000.0, 2000.0, 2000.0, 200.0, 200.0, 200.0],
+            damping_ratio: [0.7; 6],
+            null_stiffness: 100.0,
+            null_damping_ratio: 0.7,
+            max_control_force: None,
+            additional_force: [0.0; 6],
+        }
+    }
+}
+
+impl ImpedanceGains {
+    /// Same translational / rotational stiffness and one damping ratio on all axes.
+    pub fn uniform(translational: f64, rotational: f64, damping_ratio: f64) -> Self {
+        ImpedanceGains {
+            stiffness: [
+                translational,
+                translational,
+                translational,
+                rotational,
+                rotational,
+                rotational,
+            ],
+            damping_ratio: [damping_ratio; 6],
+            ..Default::default()
+        }
+    }
+
+    /// Rejects values outside the Sunrise ranges, naming the parameter, axis and range.
+    pub fn validate(&self) -> Result<()> {
+        for (i, &k) in self.stiffness.iter().enumerate() {
+            let (lo, hi) = if i < 3 {
+                TRANSLATIONAL_STIFFNESS_RANGE
+            } else {
+                ROTATIONAL_STIFFNESS_RANGE
+            };
+            let unit = if i < 3 { "N/m" } else { "N m/rad" };
+            check_range(&format!("stiffness {}", AXES[i]), k, (lo, hi), unit)?;
+        }
+        for (i, &d) in self.damping_ratio.iter().enumerate() {
+            check_range(
+                &format!("damping ratio {}", AXES[i]),
+                d,
+                DAMPING_RATIO_RANGE,
+                "",
+            )?;
+        }
+        check_range(
+            "null-space stiffness",
+            self.null_stiffness,
+            (0.0, f64::INFINITY),
+            "N m/rad",
+        )?;
+        check_range(
+            "null-space damping ratio",
+            self.null_damping_ratio,
+            NULL_SPACE_DAMPING_RANGE,
+            "",
+        )?;
+        if let Some(max) = self.max_control_force
+            && let Some((i, v)) = max.iter().enumerate().find(|(_, v)| !is_positive(**v))
+        {
+            return Err(Error::Input(format!(
+                "max control force {} is {v}: expected a positive value",
+                AXES[i]
+            )));
+        }
+        if let Some((i, v)) = self
+            .additional_force
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !v.is_finite())
+        {
+            return Err(Error::Input(format!(
+                "additional force {} is {v}: expected a finite value",
+                AXES[i]
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Positive and finite (false for NaN).
+pub fn is_positive(v: f64) -> bool {
+    v > 0.0 && v.is_finite()
+}
+
+fn check_range(what: &str, v: f64, (lo, hi): (f64, f64), unit: &str) -> Result<()> {
+    if !(v >= lo && v <= hi) {
+        return Err(Error::Input(format!(
+            "{what} {v} {unit} is outside the KUKA Sunrise range [{lo}, {hi}] {unit}"
+        )));
+    }
+    Ok(())
+}
+
+/// Joint-position mode gains.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointPositionGains {
+    /// N m/rad, every joint.
+    pub stiffness: f64,
+    /// Damping ratio on the diagonal of M(q).
+    pub damping_ratio: f64,
+}
+
+impl Default for JointPositionGains {
+    fn default() -> Self {
+        JointPositionGains {
+            stiffness: 2000.0,
+            damping_ratio: 1.0,
+        }
+    }
+}
+
+/// What the controller does.
+#[derive(Clone, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)] // one mode per controller, never stored in bulk
+pub enum Mode {
+    /// Hold the TCP at `target` (`base_T_tcp`) under Cartesian impedance.
+    CartesianImpedance { gains: ImpedanceGains, target: Iso },
+    /// Hold the joints at `target` (rad).
+    JointPosition {
+        gains: JointPositionGains,
+        target: Vec<f64>,
+    },
+}
+
+/// Controller settings that do not change with the mode.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerParams {
+    /// Control rate, Hz (the physics step must divide the control period).
+    pub rate_hz: f64,
+    /// Largest change of the commanded torque (without gravity) per control cycle, N m.
+    pub torque_rate_limit_nm: f64,
+    /// Gravity in the robot base frame, m/s^2.
+    pub gravity: [f64; 3],
+}
+
+impl Default for ControllerParams {
+    /// 1 kHz, 1 N m per cycle (franka_ros's Delta-tau_max, facts sheet 5.1), upright base.
+    fn default() -> Self {
+        ControllerParams {
+            rate_hz: 1000.0,
+            torque_rate_limit_nm: 1.0,
+            gravity: GRAVITY_UPRIGHT.into(),
+        }
+    }
+}
+
+/// The controller of one arm: a mode, its target, the null-space reference, the last torque.
+pub struct Controller {
+    pub params: ControllerParams,
+    mode: Mode,
+    /// Null-space reference posture, rad.
+    pub q_null: Vec<f64>,
+    /// Last commanded torque without gravity, N m.
+    tau_task: DVector<f64>,
+}
+
+/// One control cycle's output.
+pub struct Command {
+    /// Joint torques to apply, N m (gravity included, rate-limited, clamped).
+    pub tau: DVector<f64>,
+    /// Whether any joint hit its torque limit.
+    pub saturated: bool,
+}
+
+impl Controller {
+    /// A controller starting in `mode`, with the null-space reference at `q0`.
+    pub fn new(params: ControllerParams, mode: Mode, q0: &[f64]) -> Result<Self> {
+        if !(params.rate_hz > 0.0 && params.rate_hz <= 10_000.0) {
+            return Err(Error::Input(format!(
+                "control rate {} Hz: expected more than 0 and at most 10000 Hz",
+                params.rate_hz
+            )));
+        }
+        if !is_positive(params.torque_rate_limit_nm) {
+            return Err(Error::Input(format!(
+                "torque rate limit {} N m per cycle: expected a positive value",
+                params.torque_rate_limit_nm
+            )));
+        }
+        check_mode(&mode)?;
+        Ok(Controller {
+            params,
+            mode,
+            q_null: q0.to_vec(),
+            tau_task: DVector::zeros(q0.len()),
+        })
+    }
+
+    pub fn mode(&self) -> &Mode {
+        &self.mode
+    }
+
+    /// Switches to `mode` (validated); the torque-rate limit smooths the change.
+    pub fn set_mode(&mut self, mode: Mode) -> Result<()> {
+        check_mode(&mode)?;
+        self.mode = mode;
+        Ok(())
+    }
+
+    /// Moves the current mode's target (a Cartesian target in joint mode is an error).
+    pub fn set_cartesian_target(&mut self, target: Iso) {
+        if let Mode::CartesianImpedance { target: t, .. } = &mut self.mode {
+            *t = target;
+        }
+    }
+
+    /// One cycle: torques from joint positions `q` and velocities `qd` (rad, rad/s).
+    pub fn update(&mut self, model: &RobotModel, q: &[f64], qd: &[f64]) -> Command {
+        let k = model.kinematics(q);
+        let qd_v = DVector::from_row_slice(qd);
+        let m = model.mass_matrix(&k);
+        let wanted = match &self.mode {
+            Mode::CartesianImpedance { gains, target } => {
+                impedance_torque(model, &k, &m, gains, target, &qd_v, q, &self.q_null)
+            }
+            Mode::JointPosition { gains, target } => {
+                joint_position_torque(&m, gains, target, q, &qd_v)
+            }
+        };
+        let step = self.params.torque_rate_limit_nm;
+        let delta = (wanted - &self.tau_task).map(|d| d.clamp(-step, step));
+        self.tau_task += delta;
+        let gravity = Vector3::from(self.params.gravity);
+        let mut tau = &self.tau_task + model.gravity_torques(&k, &gravity);
+        let mut saturated = false;
+        for (t, j) in tau.iter_mut().zip(&model.joints) {
+            if t.abs() > j.effort_limit {
+                *t = t.clamp(-j.effort_limit, j.effort_limit);
+                saturated = true;
+            }
+        }
+        Command { tau, saturated }
+    }
+}
+
+fn check_mode(mode: &Mode) -> Result<()> {
+    match mode {
+        Mode::CartesianImpedance { gains, .. } => gains.validate(),
+        Mode::JointPosition { gains, .. } => {
+            if !(gains.stiffness > 0.0 && gains.damping_ratio > 0.0) {
+                return Err(Error::Input(format!(
+                    "joint position gains {} N m/rad, damping ratio {}: expected positive values",
+                    gains.stiffness, gains.damping_ratio
+                )));
+            }
+            Ok(())
+        }
+    }
+}
+
+/// Pose error of the TCP against its target, TCP frame: `[position (m); rotation vector (rad)]`,
+/// the rotation that takes the target orientation to the current one.
+pub fn tcp_error(tcp: &Iso, target: &Iso) -> Vector6<f64> {
+    let r = tcp.rotation.inverse();
+    let dp = r * (tcp.translation.vector - target.translation.vector);
+    let dr = r * (tcp.rotation * target.rotation.inverse()).scaled_axis();
+    Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
+}
+
+/// `blockdiag(R, R)`: a 6-vector from the TCP frame to the base frame.
+fn twist_rotation(tcp: &Iso) -> Matrix6<f64> {
+    let r: Matrix3<f64> = *tcp.rotation.to_rotation_matrix().matrix();
+    let mut out = Matrix6::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&r);
+    out
+}
+
+/// Symmetric positive semi-definite square root.
+fn sqrt_psd(a: &Matrix6<f64>) -> Matrix6<f64> {
+    let eig = SymmetricEigen::new(*a);
+    let s = eig.eigenvalues.map(|v| v.max(0.0).sqrt());
+    eig.eigenvectors * Matrix6::from_diagonal(&s) * eig.eigenvectors.transpose()
+}
+
+/// Damping matrix (TCP frame) by the factorisation design: `L^1/2 Xi K^1/2 + K^1/2 Xi L^1/2`.
+pub fn factorisation_damping(lambda_tcp: &Matrix6<f64>, gains: &ImpedanceGains) -> Matrix6<f64> {
+    let l_half = sqrt_psd(lambda_tcp);
+    let k_half = Matrix6::from_diagonal(&Vector6::from(gains.stiffness).map(f64::sqrt));
+    let xi = Matrix6::from_diagonal(&Vector6::from(gains.damping_ratio));
+    l_half * xi * k_half + k_half * xi * l_half
+}
+
+#[allow(clippy::too_many_arguments)]
+fn impedance_torque(
+    model: &RobotModel,
+    k: &Kinematics,
+    m: &DMatrix<f64>,
+    gains: &ImpedanceGains,
+    target: &Iso,
+    qd: &DVector<f64>,
+    q: &[f64],
+    q_null: &[f64],
+) -> DVector<f64> {
+    let tcp = model.tcp_from(k);
+    let jac = model.tcp_jacobian(k);
+    let minv = m
+        .clone()
+        .cholesky()
+        .expect("M(q) is positive definite")
+        .inverse();
+    let lambda_inv: Matrix6<f64> = (&jac * &minv * jac.transpose())
+        .fixed_view::<6, 6>(0, 0)
+        .into_owned();
+    let lambda = (lambda_inv + Matrix6::identity() * 1e-9)
+        .try_inverse()
+        .unwrap_or_else(Matrix6::zeros);
+    let to_base = twist_rotation(&tcp);
+    let lambda_tcp = to_base.transpose() * lambda * to_base;
+    let damping = factorisation_damping(&lambda_tcp, gains);
+    let v_tcp = to_base.transpose() * Vector6::from_iterator((&jac * qd).iter().copied());
+    let e = tcp_error(&tcp, target);
+    let mut f_tcp =
+        -(Matrix6::from_diagonal(&Vector6::from(gains.stiffness)) * e) - damping * v_tcp;
+    if let Some(max) = gains.max_control_force {
+        for i in 0..6 {
+            f_tcp[i] = f_tcp[i].clamp(-max[i], max[i]);
+        }
+    }
+    f_tcp += Vector6::from(gains.additional_force);
+    let f_base = to_base * f_tcp;
+    let f = DVector::from_column_slice(f_base.as_slice());
+    let tau_task = jac.transpose() * &f;
+    // Null space: joint-space spring-damper projected with I - J^T Lambda J M^-1.
+    let n = q.len();
+    let mut tau0 = DVector::zeros(n);
+    for i in 0..n {
+        let d = 2.0 * gains.null_damping_ratio * (gains.null_stiffness * m[(i, i)]).sqrt();
+        tau0[i] = gains.null_stiffness * (q_null[i] - q[i]) - d * qd[i];
+    }
+    let lambda_d = DMatrix::from_column_slice(6, 6, lambda.as_slice());
+    let jbar_t = &lambda_d * &jac * &minv; // J^{T#}, 6 x n
+    let projector = DMatrix::identity(n, n) - jac.transpose() * jbar_t;
+    tau_task + projector * tau0
+}
+
+fn joint_position_torque(
+    m: &DMatrix<f64>,
+    gains: &JointPositionGains,
+    target: &[f64],
+    q: &[f64],
+    qd: &DVector<f64>,
+) -> DVector<f64> {
+    DVector::from_fn(q.len(), |i, _| {
+        let d = 2.0 * gains.damping_ratio * (gains.stiffness * m[(i, i)]).sqrt();
+        gains.stiffness * (target[i] - q[i]) - d * qd[i]
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gains_outside_the_sunrise_ranges_are_rejected_by_name() {
+        let mut g = ImpedanceGains::default();
+        g.stiffness[2] = 6000.0;
+        let e = g.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("stiffness z") && e.contains("6000") && e.contains("[0, 5000]"),
+            "{e}"
+        );
+        let mut g = ImpedanceGains::default();
+        g.stiffness[4] = 350.0;
+        assert!(g.validate().unwrap_err().to_string().contains("[0, 300]"));
+        let mut g = ImpedanceGains::default();
+        g.damping_ratio[0] = 0.05;
+        assert!(
+            g.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("damping ratio x")
+        );
+        let g = ImpedanceGains {
+            null_damping_ratio: 0.2,
+            ..Default::default()
+        };
+        assert!(
+            g.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("null-space damping")
+        );
+        let g = ImpedanceGains {
+            max_control_force: Some([10.0, 10.0, 0.0, 1.0, 1.0, 1.0]),
+            ..Default::default()
+        };
+        assert!(
+            g.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("max control force z")
+        );
+        ImpedanceGains::default().validate().unwrap();
+        ImpedanceGains::uniform(5000.0, 300.0, 1.0)
+            .validate()
+            .unwrap();
+    }
+
+    #[test]
+    fn factorisation_damping_is_critical_for_a_diagonal_inertia() {
+        let lambda = Matrix6::from_diagonal(&Vector6::new(4.0, 4.0, 4.0, 0.09, 0.09, 0.09));
+        let g = ImpedanceGains::uniform(2500.0, 100.0, 1.0);
+        let d = factorisation_damping(&lambda, &g);
+        assert!((d[(0, 0)] - 2.0 * (2500.0f64 * 4.0).sqrt()).abs() < 1e-9);
+        assert!((d[(3, 3)] - 2.0 * (100.0f64 * 0.09).sqrt()).abs() < 1e-9);
+        assert!(d[(0, 1)].abs() < 1e-12);
+    }
+
+    #[test]
+    fn tcp_error_is_zero_on_target_and_signed_in_the_tcp_frame() {
+        let target = Iso::from_parts(
+            nalgebra::Translation3::new(0.5, 0.0, 0.3),
+            nalgebra::UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0),
+        );
+        assert!(tcp_error(&target, &target).norm() < 1e-12);
+        let moved = Iso::from_parts(
+            nalgebra::Translation3::new(0.501, 0.0, 0.3),
+            target.rotation,
+        );
+        let e = tcp_error(&moved, &target);
+        // TCP x is base x under a roll of pi.
+        assert!((e[0] - 0.001).abs() < 1e-12 && e[1].abs() < 1e-12, "{e}");
+        let up = Iso::from_parts(
+            nalgebra::Translation3::new(0.5, 0.0, 0.301),
+            target.rotation,
+        );
+        assert!(
+            (tcp_error(&up, &target)[2] + 0.001).abs() < 1e-12,
+            "TCP z points down"
+        );
+    }
+}

@@ -1,0 +1,169 @@
+//! The robot cell end to end: static stiffness under impedance, the estimated wrench against the
+//! physics' contact force, insertion at 0.1 mm clearance, stalling when misaligned, mode switches.
+
+use pegtwin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
+use pegtwin::control::{ImpedanceGains, JointPositionGains, Mode};
+use pegtwin::diagnostics::{PushTest, measure_stiffness};
+use pegtwin::geometry::{PartPair, build_builtin, builtin_by_name};
+use pegtwin::robot::Iso;
+use pegtwin::robot::urdf::iiwa14;
+use pegtwin::sim::penetration::PenetrationProbe;
+
+fn cross(clearance_m: f64) -> PartPair {
+    build_builtin(builtin_by_name("cross").unwrap(), clearance_m).unwrap()
+}
+
+#[test]
+fn static_stiffness_is_within_5_percent_at_sunrise_defaults_and_maxima() {
+    let pair = cross(0.5e-3);
+    let robot = iiwa14().unwrap();
+    for gains in [
+        ImpedanceGains::default(),
+        ImpedanceGains::uniform(5000.0, 300.0, 0.7),
+    ] {
+        let axes = measure_stiffness(
+            &pair,
+            &robot,
+            &CellParams::default(),
+            &gains,
+            PushTest::default(),
+        )
+        .unwrap();
+        for a in axes {
+            assert!(
+                a.error_percent.abs() < 5.0,
+                "{} commanded {} measured {}",
+                a.axis,
+                a.commanded,
+                a.measured
+            );
+        }
+    }
+}
+
+/// Lowers the peg from `start` by `travel_m` along the hole axis over 2 s, holds 2 s more;
+/// returns the cell and the largest exact penetration seen (sampled every 5 ms).
+fn press_down(pair: &PartPair, start: Iso, travel_m: f64, params: &CellParams) -> (Cell, f64) {
+    let hole = nominal_hole_pose(pair, params);
+    let mut cell = Cell::new(
+        pair,
+        iiwa14().unwrap(),
+        params,
+        Some(hole),
+        &start,
+        ImpedanceGains::default(),
+        7,
+    )
+    .unwrap();
+    let probe = PenetrationProbe::new(&pair.hole, &hole);
+    let mut worst: f64 = 0.0;
+    for i in 0..4000 {
+        let s = (i as f64 / 2000.0).min(1.0);
+        cell.controller
+            .set_cartesian_target(start * Iso::translation(0.0, 0.0, -travel_m * s));
+        cell.step();
+        if i % 5 == 0 {
+            worst = worst.max(probe.max_penetration(&pair.peg, &cell.tcp_pose()));
+        }
+    }
+    (cell, worst)
+}
+
+fn depth_m(cell: &Cell) -> f64 {
+    -(cell.base_t_hole.unwrap().inverse() * cell.tcp_pose())
+        .translation
+        .z
+}
+
+#[test]
+fn aligned_cross_goes_from_2_mm_to_full_depth_at_0_1_mm_and_the_press_is_estimated_within_1_n() {
+    let pair = cross(0.1e-3);
+    let params = CellParams::default();
+    let hole = nominal_hole_pose(&pair, &params);
+    let start = tcp_in_hole(&hole, 0.002);
+    let (cell, worst) = press_down(&pair, start, pair.cavity_depth_m + 0.003, &params);
+    let depth = depth_m(&cell);
+    assert!(
+        (depth - pair.cavity_depth_m).abs() < 0.1e-3,
+        "depth {depth} m"
+    );
+    assert!(worst <= 5e-6, "penetration {worst} m");
+    // Static press on the floor: 2000 N/m x about 5 mm.
+    let truth = cell.true_contact_wrench();
+    let est = cell.sensors.wrench;
+    let f_true = truth.fixed_rows::<3>(0).into_owned();
+    let f_est = est.fixed_rows::<3>(0).into_owned();
+    assert!(f_true.z > 5.0, "pressing {f_true}");
+    let noise = 3.0 * params.sensors.torque_noise_nm; // N m at about 1 m lever
+    assert!(
+        (f_est - f_true).norm() < 1.0 + noise,
+        "estimated {f_est} true {f_true}"
+    );
+    assert!(cell.sensors.contact);
+}
+
+#[test]
+fn misaligned_cross_stalls_on_the_mouth() {
+    let pair = cross(0.1e-3);
+    let params = CellParams::default();
+    let hole = nominal_hole_pose(&pair, &params);
+    // 1 mm off: the arms of the cross land on the rim.
+    let start = tcp_in_hole(&hole, -0.001) * Iso::translation(0.001, 0.0, 0.0);
+    let (cell, worst) = press_down(&pair, start, 0.01, &params);
+    assert!(depth_m(&cell) < 0.1e-3, "depth {}", depth_m(&cell));
+    assert!(worst <= 5e-6, "penetration {worst} m");
+    let f = cell.true_contact_wrench();
+    assert!(f.z > 10.0, "the rim carries the press: {f}");
+}
+
+#[test]
+fn switching_to_joint_position_mode_holds_the_pose_without_a_torque_jump() {
+    let pair = cross(0.5e-3);
+    let params = CellParams::default();
+    let hole = nominal_hole_pose(&pair, &params);
+    let start = tcp_in_hole(&hole, -0.05);
+    let mut cell = Cell::new(
+        &pair,
+        iiwa14().unwrap(),
+        &params,
+        None,
+        &start,
+        ImpedanceGains::default(),
+        3,
+    )
+    .unwrap();
+    cell.run(0.5);
+    let before = cell.tcp_pose();
+    let q = cell.q();
+    cell.controller
+        .set_mode(Mode::JointPosition {
+            gains: JointPositionGains::default(),
+            target: q,
+        })
+        .unwrap();
+    let mut last = cell.torques().clone();
+    for _ in 0..500 {
+        cell.step();
+        let jump = (cell.torques() - &last).amax();
+        assert!(
+            jump <= params.controller.torque_rate_limit_nm + 0.5,
+            "torque jump {jump}"
+        );
+        last = cell.torques().clone();
+    }
+    let moved = (cell.tcp_pose().translation.vector - before.translation.vector).norm();
+    assert!(moved < 0.1e-3, "moved {moved} m");
+    let bad = ImpedanceGains {
+        stiffness: [2000.0, 2000.0, 9000.0, 200.0, 200.0, 200.0],
+        ..Default::default()
+    };
+    let e = cell
+        .controller
+        .set_mode(Mode::CartesianImpedance {
+            gains: bad,
+            target: before,
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("stiffness z") && e.contains("9000"), "{e}");
+}
