@@ -10,7 +10,9 @@ use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
 mod registration;
+mod robot;
 pub use registration::{ManifoldAction, RegisterArgs};
+pub use robot::RobotAction;
 
 #[derive(Parser)]
 #[command(
@@ -40,6 +42,12 @@ pub enum Command {
     },
     /// Estimate the hole pose from observed contact poses (paper Algorithm 1).
     Register(RegisterArgs),
+    /// The robot model: joints and masses, forward kinematics, gravity torques, and the static
+    /// stiffness it shows in simulation under Cartesian impedance.
+    Robot {
+        #[command(subcommand)]
+        action: RobotAction,
+    },
 }
 
 #[derive(Subcommand)]
@@ -155,6 +163,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         }
         Command::Manifold { action } => registration::manifold_command(action),
         Command::Register(args) => registration::register_command(args),
+        Command::Robot { action } => robot::robot_command(action),
     }
 }
 
