@@ -170,6 +170,7 @@ impl Cell {
         let peg_reach_m = (hi - lo).norm() + tcp_on_flange.translation.vector.norm();
         let controller = Controller::new(
             params.controller.clone(),
+            &model,
             Mode::CartesianImpedance {
                 gains,
                 target: *start_tcp,
@@ -245,11 +246,10 @@ impl Cell {
         let qd = self.arm.qd(&self.world);
         let q_meas = self.sensors.read_q(&q);
         let tau_meas = self.sensors.read_torques(&self.tau_link, period);
-        let k = self.model.kinematics(&q_meas);
         let gravity = Vector3::from(self.controller.params.gravity);
-        self.sensors
-            .estimate(&self.model, &k, &qd, &tau_meas, &gravity, period);
-        self.tau = self.controller.update(&self.model, &q_meas, &qd).tau;
+        let d = self.model.dynamics(&q_meas, &gravity);
+        self.sensors.estimate(&d, &qd, &tau_meas, period);
+        self.tau = self.controller.update(&d, &q_meas, &qd).tau;
     }
 
     fn apply_push(&mut self, w: &Wrench6) {

@@ -19,8 +19,8 @@
 //! the current pose, and the rate limit carries the torque across the switch without a jump.
 
 use crate::error::{Error, Result};
-use crate::robot::{GRAVITY_UPRIGHT, Iso, Kinematics, RobotModel};
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, SymmetricEigen, Vector3, Vector6};
+use crate::robot::{Dynamics, GRAVITY_UPRIGHT, Iso, RobotModel};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, SymmetricEigen, Vector6};
 use serde::{Deserialize, Serialize};
 
 /// Sunrise ranges (facts sheet 4.1).
@@ -210,6 +210,8 @@ pub struct Controller {
     pub q_null: Vec<f64>,
     /// Last commanded torque without gravity, N m.
     tau_task: DVector<f64>,
+    /// Joint torque limits, N m.
+    effort_limits: Vec<f64>,
 }
 
 /// One control cycle's output.
@@ -221,8 +223,13 @@ pub struct Command {
 }
 
 impl Controller {
-    /// A controller starting in `mode`, with the null-space reference at `q0`.
-    pub fn new(params: ControllerParams, mode: Mode, q0: &[f64]) -> Result<Self> {
+    /// A controller of `model` starting in `mode`, with the null-space reference at `q0`.
+    pub fn new(
+        params: ControllerParams,
+        model: &RobotModel,
+        mode: Mode,
+        q0: &[f64],
+    ) -> Result<Self> {
         if !(params.rate_hz > 0.0 && params.rate_hz <= 10_000.0) {
             return Err(Error::Input(format!(
                 "control rate {} Hz: expected more than 0 and at most 10000 Hz",
@@ -241,6 +248,7 @@ impl Controller {
             mode,
             q_null: q0.to_vec(),
             tau_task: DVector::zeros(q0.len()),
+            effort_limits: model.joints.iter().map(|j| j.effort_limit).collect(),
         })
     }
 
@@ -262,28 +270,26 @@ impl Controller {
         }
     }
 
-    /// One cycle: torques from joint positions `q` and velocities `qd` (rad, rad/s).
-    pub fn update(&mut self, model: &RobotModel, q: &[f64], qd: &[f64]) -> Command {
-        let k = model.kinematics(q);
+    /// One cycle: torques from the model evaluated at the measured joint positions `q` and the
+    /// joint velocities `qd` (rad, rad/s).
+    pub fn update(&mut self, d: &Dynamics, q: &[f64], qd: &[f64]) -> Command {
         let qd_v = DVector::from_row_slice(qd);
-        let m = model.mass_matrix(&k);
         let wanted = match &self.mode {
             Mode::CartesianImpedance { gains, target } => {
-                impedance_torque(model, &k, &m, gains, target, &qd_v, q, &self.q_null)
+                impedance_torque(d, gains, target, &qd_v, q, &self.q_null)
             }
             Mode::JointPosition { gains, target } => {
-                joint_position_torque(&m, gains, target, q, &qd_v)
+                joint_position_torque(&d.mass, gains, target, q, &qd_v)
             }
         };
         let step = self.params.torque_rate_limit_nm;
         let delta = (wanted - &self.tau_task).map(|d| d.clamp(-step, step));
         self.tau_task += delta;
-        let gravity = Vector3::from(self.params.gravity);
-        let mut tau = &self.tau_task + model.gravity_torques(&k, &gravity);
+        let mut tau = &self.tau_task + &d.gravity;
         let mut saturated = false;
-        for (t, j) in tau.iter_mut().zip(&model.joints) {
-            if t.abs() > j.effort_limit {
-                *t = t.clamp(-j.effort_limit, j.effort_limit);
+        for (t, limit) in tau.iter_mut().zip(&self.effort_limits) {
+            if t.abs() > *limit {
+                *t = t.clamp(-limit, *limit);
                 saturated = true;
             }
         }
@@ -339,34 +345,21 @@ pub fn factorisation_damping(lambda_tcp: &Matrix6<f64>, gains: &ImpedanceGains) 
     l_half * xi * k_half + k_half * xi * l_half
 }
 
-#[allow(clippy::too_many_arguments)]
 fn impedance_torque(
-    model: &RobotModel,
-    k: &Kinematics,
-    m: &DMatrix<f64>,
+    d: &Dynamics,
     gains: &ImpedanceGains,
     target: &Iso,
     qd: &DVector<f64>,
     q: &[f64],
     q_null: &[f64],
 ) -> DVector<f64> {
-    let tcp = model.tcp_from(k);
-    let jac = model.tcp_jacobian(k);
-    let minv = m
-        .clone()
-        .cholesky()
-        .expect("M(q) is positive definite")
-        .inverse();
-    let lambda_inv: Matrix6<f64> = (&jac * &minv * jac.transpose())
-        .fixed_view::<6, 6>(0, 0)
-        .into_owned();
-    let lambda = (lambda_inv + Matrix6::identity() * 1e-9)
-        .try_inverse()
-        .unwrap_or_else(Matrix6::zeros);
+    let (tcp, jac, m) = (d.tcp, &d.jacobian, &d.mass);
+    let minv = d.mass_inverse();
+    let lambda = d.cartesian_inertia(&minv);
     let to_base = twist_rotation(&tcp);
     let lambda_tcp = to_base.transpose() * lambda * to_base;
     let damping = factorisation_damping(&lambda_tcp, gains);
-    let v_tcp = to_base.transpose() * Vector6::from_iterator((&jac * qd).iter().copied());
+    let v_tcp = to_base.transpose() * Vector6::from_iterator((jac * qd).iter().copied());
     let e = tcp_error(&tcp, target);
     let mut f_tcp =
         -(Matrix6::from_diagonal(&Vector6::from(gains.stiffness)) * e) - damping * v_tcp;
@@ -387,7 +380,7 @@ fn impedance_torque(
         tau0[i] = gains.null_stiffness * (q_null[i] - q[i]) - d * qd[i];
     }
     let lambda_d = DMatrix::from_column_slice(6, 6, lambda.as_slice());
-    let jbar_t = &lambda_d * &jac * &minv; // J^{T#}, 6 x n
+    let jbar_t = &lambda_d * jac * &minv; // J^{T#}, 6 x n
     let projector = DMatrix::identity(n, n) - jac.transpose() * jbar_t;
     tau_task + projector * tau0
 }

@@ -21,8 +21,8 @@
 //! [`SensorParams`], and every one of them is configurable.
 
 use crate::error::{Error, Result};
-use crate::robot::{Kinematics, RobotModel};
-use nalgebra::{DMatrix, DVector, Matrix6, Vector3, Vector6};
+use crate::robot::Dynamics;
+use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -190,25 +190,15 @@ impl Sensors {
         out
     }
 
-    /// One estimator cycle of `dt_s` seconds from measured q, qd, torques: updates `tau_ext`,
-    /// `wrench` and `contact`.
-    pub fn estimate(
-        &mut self,
-        model: &RobotModel,
-        k: &Kinematics,
-        qd: &[f64],
-        tau_measured: &DVector<f64>,
-        gravity: &Vector3<f64>,
-        dt_s: f64,
-    ) {
-        let m_link = model.link_mass_matrix(k);
-        let p = m_link * DVector::from_row_slice(qd);
+    /// One estimator cycle of `dt_s` seconds from the model at the measured joint positions,
+    /// the joint velocities and the measured torques: updates `tau_ext`, `wrench` and `contact`.
+    pub fn estimate(&mut self, d: &Dynamics, qd: &[f64], tau_measured: &DVector<f64>, dt_s: f64) {
+        let p = &d.link_mass * DVector::from_row_slice(qd);
         let p0 = self.p0.get_or_insert_with(|| p.clone()).clone();
-        let g = model.gravity_torques(k, gravity);
         self.tau_ext = (&p - p0 - &self.integral) * self.params.observer_gain_per_s;
-        self.integral += (tau_measured - g + &self.tau_ext) * dt_s;
-        let jac = model.tcp_jacobian(k);
-        let f = wrench_from_joint_torques(&jac, &self.tau_ext, self.params.pinv_damping);
+        self.integral += (tau_measured - &d.gravity + &self.tau_ext) * dt_s;
+        let jac = &d.jacobian;
+        let f = wrench_from_joint_torques(jac, &self.tau_ext, self.params.pinv_damping);
         let alpha = 1.0 - (-std::f64::consts::TAU * self.params.wrench_filter_hz * dt_s).exp();
         self.wrench += (f - self.wrench) * alpha;
         let force = self.wrench.fixed_rows::<3>(0).norm();

@@ -11,7 +11,7 @@ pub mod urdf;
 
 use crate::error::{Error, Result};
 use nalgebra::{
-    DMatrix, DVector, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3,
+    DMatrix, DVector, Isometry3, Matrix3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3,
 };
 use serde::Serialize;
 
@@ -308,24 +308,24 @@ impl RobotModel {
     /// Gravity torques g(q), N m: the joint torques that hold the arm still against `gravity`
     /// (m/s^2, base frame), `sum_i J_com,i^T (-m_i gravity)`.
     pub fn gravity_torques(&self, k: &Kinematics, gravity: &Vector3<f64>) -> DVector<f64> {
-        let mut tau = DVector::zeros(self.dof());
-        for (i, link) in self.link_inertials().iter().enumerate() {
-            let com = k.frames[i] * link.com;
-            let jac = self.point_jacobian(k, &com, i);
-            tau += jac.fixed_rows::<3>(0).transpose() * (-link.mass_kg * gravity);
-        }
-        tau
+        self.link_terms(k, gravity).1
     }
 
     /// Joint-space inertia M(q), kg m^2: links and tool, plus the rotor inertia on the diagonal.
     pub fn mass_matrix(&self, k: &Kinematics) -> DMatrix<f64> {
-        self.link_mass_matrix(k) + DMatrix::from_diagonal(&DVector::from_row_slice(&self.armature))
+        self.link_terms(k, &Vector3::zeros()).0 + self.armature_matrix()
     }
 
-    /// Joint-space inertia of the links and tool alone (what the joint torque sensors carry).
-    pub fn link_mass_matrix(&self, k: &Kinematics) -> DMatrix<f64> {
+    fn armature_matrix(&self) -> DMatrix<f64> {
+        DMatrix::from_diagonal(&DVector::from_row_slice(&self.armature))
+    }
+
+    /// The joint-space inertia of links and tool (no rotor inertia) and the gravity torques, from
+    /// one pass over the links' centre-of-mass Jacobians.
+    fn link_terms(&self, k: &Kinematics, gravity: &Vector3<f64>) -> (DMatrix<f64>, DVector<f64>) {
         let n = self.dof();
         let mut m = DMatrix::zeros(n, n);
+        let mut g = DVector::zeros(n);
         for (i, link) in self.link_inertials().iter().enumerate() {
             let com = k.frames[i] * link.com;
             let jac = self.point_jacobian(k, &com, i);
@@ -334,26 +334,61 @@ impl RobotModel {
             let r = k.frames[i].rotation.to_rotation_matrix();
             let inertia = r.matrix() * link.inertia * r.matrix().transpose();
             m += link.mass_kg * jv.transpose() * jv + jw.transpose() * inertia * jw;
+            g += jv.transpose() * (-link.mass_kg * gravity);
         }
-        m
+        (m, g)
     }
 
-    /// Cartesian inertia at the TCP, `(J M^-1 J^T)^-1` (6 x 6, base frame), inverted with a small
-    /// damping so that it stays finite near singular configurations.
-    pub fn cartesian_inertia(&self, k: &Kinematics) -> nalgebra::Matrix6<f64> {
-        let jac = self.tcp_jacobian(k);
-        let minv = self
-            .mass_matrix(k)
+    /// Everything a control cycle needs at `q`, computed once.
+    pub fn dynamics(&self, q: &[f64], gravity: &Vector3<f64>) -> Dynamics {
+        let kinematics = self.kinematics(q);
+        let (link_mass, gravity_torques) = self.link_terms(&kinematics, gravity);
+        Dynamics {
+            tcp: self.tcp_from(&kinematics),
+            jacobian: self.tcp_jacobian(&kinematics),
+            mass: &link_mass + self.armature_matrix(),
+            link_mass,
+            gravity: gravity_torques,
+            kinematics,
+        }
+    }
+}
+
+/// The model evaluated at one configuration (base frame).
+pub struct Dynamics {
+    pub kinematics: Kinematics,
+    /// `base_T_tcp`.
+    pub tcp: Iso,
+    /// TCP Jacobian, 6 x n, rows `[v; w]`.
+    pub jacobian: DMatrix<f64>,
+    /// Joint-space inertia of links and tool (what the joint torque sensors carry), kg m^2.
+    pub link_mass: DMatrix<f64>,
+    /// `link_mass` plus the rotor inertia: the inertia the motors drive.
+    pub mass: DMatrix<f64>,
+    /// g(q), N m.
+    pub gravity: DVector<f64>,
+}
+
+impl Dynamics {
+    /// `M^-1` (Cholesky; M is positive definite by construction).
+    pub fn mass_inverse(&self) -> DMatrix<f64> {
+        self.mass
+            .clone()
             .cholesky()
             .expect("M(q) is positive definite")
-            .inverse();
-        let inv: nalgebra::Matrix6<f64> = (&jac * minv * jac.transpose())
+            .inverse()
+    }
+
+    /// Cartesian inertia at the TCP, `(J M^-1 J^T)^-1` (6 x 6, base frame), from `M^-1`, inverted
+    /// with a small damping so that it stays finite near singular configurations.
+    pub fn cartesian_inertia(&self, mass_inverse: &DMatrix<f64>) -> Matrix6<f64> {
+        let jac = &self.jacobian;
+        let inv: Matrix6<f64> = (jac * mass_inverse * jac.transpose())
             .fixed_view::<6, 6>(0, 0)
             .into_owned();
-        let damped = inv + nalgebra::Matrix6::identity() * 1e-9;
-        damped
+        (inv + Matrix6::identity() * 1e-9)
             .try_inverse()
-            .unwrap_or_else(nalgebra::Matrix6::zeros)
+            .unwrap_or_else(Matrix6::zeros)
     }
 }
 
