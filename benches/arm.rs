@@ -11,7 +11,7 @@ use pegtwin::robot::Iso;
 use pegtwin::robot::urdf::iiwa14;
 use std::hint::black_box;
 
-const STEPS: usize = 500;
+const STEPS: usize = 2000;
 
 fn probing_target(start: &Iso, t: f64) -> Iso {
     let w = std::f64::consts::TAU;

@@ -286,57 +286,14 @@ fn sat_manifold<M, C: Default + Copy>(
             best = (s, Axis::FaceB(i), -*m);
         }
     }
-    // Edge pairs that make a face of the Minkowski difference. Per edge: the two adjacent face
-    // normals (B's negated), their cross product, the direction and a point, all in A's frame.
-    let centroid_a = pa.iter().copied().sum::<Vector>() / pa.len() as Real;
-    let face_limit = best.0;
-    let arcs_b: Vec<GaussArc> = b
-        .edges()
-        .iter()
-        .map(|e| {
-            let (c, d) = (-nb[e.faces[0] as usize], -nb[e.faces[1] as usize]);
-            GaussArc {
-                n1: c,
-                n2: d,
-                cross: d.cross(c),
-                dir: pos12.rotation * e.dir,
-                point: pb[e.vertices[0] as usize],
-            }
-        })
-        .collect();
-    for (ia, ea) in a.edges().iter().enumerate() {
-        let (fa1, fa2) = (
-            a.faces()[ea.faces[0] as usize].normal,
-            a.faces()[ea.faces[1] as usize].normal,
-        );
-        let b_x_a = fa2.cross(fa1);
-        let p_a = pa[ea.vertices[0] as usize];
-        for (ib, eb) in arcs_b.iter().enumerate() {
-            // Gauss-map arcs (fa1, fa2) and (c, d) cross (D. Gregorius, GDC 2013).
-            let (cba, dba) = (eb.n1.dot(b_x_a), eb.n2.dot(b_x_a));
-            let (adc, bdc) = (fa1.dot(eb.cross), fa2.dot(eb.cross));
-            if !(cba * dba < 0.0 && adc * bdc < 0.0 && cba * bdc > 0.0) {
-                continue;
-            }
-            let axis = ea.dir.cross(eb.dir);
-            let len = axis.length();
-            if len < 1e-5 {
-                continue;
-            }
-            let mut axis = axis / len;
-            if axis.dot(p_a - centroid_a) < 0.0 {
-                axis = -axis;
-            }
-            let s = axis.dot(eb.point - p_a);
-            if s > prediction {
-                manifold.local_n1 = axis;
-                return;
-            }
-            if s > best.0.max(face_limit + EDGE_TOLERANCE) {
-                best = (s, Axis::Edges(ia, ib), axis);
-            }
+    // Edge pairs that make a face of the Minkowski difference.
+    let best = match edge_stage(a, b, pos12, &nb, &pb, prediction, best) {
+        Ok(best) => best,
+        Err(separating) => {
+            manifold.local_n1 = separating;
+            return;
         }
-    }
+    };
     let (_, axis, n1) = best;
     manifold.local_n1 = n1;
     manifold.local_n2 = pos12.rotation.inverse() * -n1;
@@ -348,14 +305,130 @@ fn sat_manifold<M, C: Default + Copy>(
     manifold.match_contacts(&old_points);
 }
 
-/// An edge of the second piece on the Gauss map, in the first piece's frame: its two adjacent
-/// face normals, negated, their cross product, and the edge's direction and one of its points.
-struct GaussArc {
-    n1: Vector,
-    n2: Vector,
-    cross: Vector,
-    dir: Vector,
-    point: Vector,
+/// The best axis after the face axes `best`, among edge pairs of A and B that make a face of the
+/// Minkowski difference; `Err(axis)` as soon as one separates the pieces by more than `prediction`.
+/// `nb` and `pb` are B's face normals and points in A's frame.
+fn edge_stage(
+    a: &ConvexPolyhedron,
+    b: &ConvexPolyhedron,
+    pos12: &Pose,
+    nb: &[Vector],
+    pb: &[Vector],
+    prediction: Real,
+    mut best: (Real, Axis, Vector),
+) -> Result<(Real, Axis, Vector), Vector> {
+    let pa = a.points();
+    let centroid_a = pa.iter().copied().sum::<Vector>() / pa.len() as Real;
+    let face_limit = best.0;
+    SCRATCH.with_borrow_mut(|scratch| {
+        let Scratch { arcs, crosses } = scratch;
+        arcs.fill(b, pos12, nb, pb);
+        crosses.clear();
+        crosses.resize(arcs.len(), false);
+        for (ia, ea) in a.edges().iter().enumerate() {
+            let (fa1, fa2) = (
+                a.faces()[ea.faces[0] as usize].normal,
+                a.faces()[ea.faces[1] as usize].normal,
+            );
+            let p_a = pa[ea.vertices[0] as usize];
+            arcs.crossing(fa1, fa2, crosses);
+            for ib in (0..crosses.len()).filter(|&ib| crosses[ib]) {
+                let axis = ea.dir.cross(arcs.dir[ib]);
+                let len = axis.length();
+                if len < 1e-5 {
+                    continue;
+                }
+                let mut axis = axis / len;
+                if axis.dot(p_a - centroid_a) < 0.0 {
+                    axis = -axis;
+                }
+                let s = axis.dot(arcs.point[ib] - p_a);
+                if s > prediction {
+                    return Err(axis);
+                }
+                if s > best.0.max(face_limit + EDGE_TOLERANCE) {
+                    best = (s, Axis::Edges(ia, ib), axis);
+                }
+            }
+        }
+        Ok(best)
+    })
+}
+
+/// Buffers reused across calls (one set per thread), so that a full test allocates nothing.
+#[derive(Default)]
+struct Scratch {
+    arcs: GaussArcs,
+    crosses: Vec<bool>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// The edges of the second piece on the Gauss map, in the first piece's frame, stored by
+/// coordinate so that the crossing test runs over all of them at once (vectorised): per edge,
+/// its two adjacent face normals negated (`n1`, `n2`), their cross product, and the edge's
+/// direction and one of its points.
+#[derive(Default)]
+struct GaussArcs {
+    n1: [Vec<Real>; 3],
+    n2: [Vec<Real>; 3],
+    cross: [Vec<Real>; 3],
+    dir: Vec<Vector>,
+    point: Vec<Vector>,
+}
+
+impl GaussArcs {
+    /// Refills with the arcs of `b`, whose face normals `nb` and points `pb` are already in A's
+    /// frame.
+    fn fill(&mut self, b: &ConvexPolyhedron, pos12: &Pose, nb: &[Vector], pb: &[Vector]) {
+        for v in self
+            .n1
+            .iter_mut()
+            .chain(&mut self.n2)
+            .chain(&mut self.cross)
+        {
+            v.clear();
+        }
+        self.dir.clear();
+        self.point.clear();
+        for e in b.edges() {
+            let (c, d) = (-nb[e.faces[0] as usize], -nb[e.faces[1] as usize]);
+            let x = d.cross(c);
+            for k in 0..3 {
+                self.n1[k].push(c[k]);
+                self.n2[k].push(d[k]);
+                self.cross[k].push(x[k]);
+            }
+            self.dir.push(pos12.rotation * e.dir);
+            self.point.push(pb[e.vertices[0] as usize]);
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.dir.len()
+    }
+
+    /// Which arcs cross the arc (fa1, fa2) of an edge of A: the Gauss-map test of
+    /// D. Gregorius (GDC 2013), without branches so that it vectorises.
+    fn crossing(&self, fa1: Vector, fa2: Vector, out: &mut [bool]) {
+        let w = fa2.cross(fa1);
+        let m = out.len();
+        let [n1x, n1y, n1z] = &self.n1;
+        let [n2x, n2y, n2z] = &self.n2;
+        let [cx, cy, cz] = &self.cross;
+        let (n1x, n1y, n1z) = (&n1x[..m], &n1y[..m], &n1z[..m]);
+        let (n2x, n2y, n2z) = (&n2x[..m], &n2y[..m], &n2z[..m]);
+        let (cx, cy, cz) = (&cx[..m], &cy[..m], &cz[..m]);
+        for j in 0..m {
+            let cba = n1x[j] * w.x + n1y[j] * w.y + n1z[j] * w.z;
+            let dba = n2x[j] * w.x + n2y[j] * w.y + n2z[j] * w.z;
+            let adc = fa1.x * cx[j] + fa1.y * cy[j] + fa1.z * cz[j];
+            let bdc = fa2.x * cx[j] + fa2.y * cy[j] + fa2.z * cz[j];
+            out[j] = (cba * dba < 0.0) & (adc * bdc < 0.0) & (cba * bdc > 0.0);
+        }
+    }
 }
 
 fn face_polygon(p: &ConvexPolyhedron, face: usize) -> Vec<Vector> {
