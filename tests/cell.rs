@@ -167,3 +167,77 @@ fn switching_to_joint_position_mode_holds_the_pose_without_a_torque_jump() {
         .to_string();
     assert!(e.contains("stiffness z") && e.contains("9000"), "{e}");
 }
+
+#[test]
+fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
+    let pair = cross(0.5e-3);
+    let params = CellParams::default();
+    let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
+    let robot = iiwa14().unwrap();
+    // 10 N feed-forward along TCP z against 2000 N/m: the TCP moves 5 mm along its z.
+    let gains = ImpedanceGains {
+        additional_force: [0.0, 0.0, 10.0, 0.0, 0.0, 0.0],
+        ..Default::default()
+    };
+    let mut cell = Cell::new(&pair, robot.clone(), &params, None, &start, gains, 1).unwrap();
+    cell.run(2.0);
+    let e = pegtwin::control::tcp_error(&cell.tcp_pose(), &start);
+    assert!((e[2] - 0.005).abs() < 0.05e-3, "moved {e}");
+    // A 6 N push along x with the spring force capped at 2 N: the TCP keeps yielding.
+    let gains = ImpedanceGains {
+        max_control_force: Some([2.0, 50.0, 50.0, 5.0, 5.0, 5.0]),
+        ..Default::default()
+    };
+    let mut cell = Cell::new(&pair, robot, &params, None, &start, gains, 1).unwrap();
+    let x = start.rotation * nalgebra::Vector3::x();
+    cell.push = Some(nalgebra::Vector6::new(
+        6.0 * x.x,
+        6.0 * x.y,
+        6.0 * x.z,
+        0.0,
+        0.0,
+        0.0,
+    ));
+    cell.run(0.5);
+    let early = pegtwin::control::tcp_error(&cell.tcp_pose(), &start)[0];
+    cell.run(0.5);
+    let late = pegtwin::control::tcp_error(&cell.tcp_pose(), &start)[0];
+    assert!(
+        early > 0.01 && late > early + 0.01,
+        "capped spring must yield: {early} then {late} m"
+    );
+}
+
+#[test]
+fn control_rate_is_independent_of_the_physics_step() {
+    let pair = cross(0.5e-3);
+    let mut params = CellParams::default();
+    params.controller.rate_hz = 500.0;
+    let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
+    let mut cell = Cell::new(
+        &pair,
+        iiwa14().unwrap(),
+        &params,
+        None,
+        &start,
+        ImpedanceGains::default(),
+        1,
+    )
+    .unwrap();
+    cell.run(1.0);
+    assert!((cell.tcp_pose().translation.vector - start.translation.vector).norm() < 0.05e-3);
+    params.controller.rate_hz = 300.0;
+    let e = Cell::new(
+        &pair,
+        iiwa14().unwrap(),
+        &params,
+        None,
+        &start,
+        ImpedanceGains::default(),
+        1,
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(e.contains("whole number of physics steps"), "{e}");
+}

@@ -333,8 +333,10 @@ impl RobotModel {
             let jw = jac.fixed_rows::<3>(3);
             let r = k.frames[i].rotation.to_rotation_matrix();
             let inertia = r.matrix() * link.inertia * r.matrix().transpose();
-            m += link.mass_kg * jv.transpose() * jv + jw.transpose() * inertia * jw;
-            g += jv.transpose() * (-link.mass_kg * gravity);
+            // In place: M += m Jv^T Jv + Jw^T I Jw, g += Jv^T (-m gravity).
+            m.gemm_tr(link.mass_kg, &jv, &jv, 1.0);
+            m.gemm_tr(1.0, &jw, &(inertia * jw), 1.0);
+            g.gemv_tr(-link.mass_kg, &jv, gravity, 1.0);
         }
         (m, g)
     }

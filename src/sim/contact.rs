@@ -322,7 +322,7 @@ fn edge_stage(
     let face_limit = best.0;
     SCRATCH.with_borrow_mut(|scratch| {
         let Scratch { arcs, crosses } = scratch;
-        arcs.fill(b, pos12, nb, pb);
+        arcs.fill(b, nb);
         crosses.clear();
         crosses.resize(arcs.len(), false);
         for (ia, ea) in a.edges().iter().enumerate() {
@@ -333,7 +333,8 @@ fn edge_stage(
             let p_a = pa[ea.vertices[0] as usize];
             arcs.crossing(fa1, fa2, crosses);
             for ib in (0..crosses.len()).filter(|&ib| crosses[ib]) {
-                let axis = ea.dir.cross(arcs.dir[ib]);
+                let eb = &b.edges()[ib];
+                let axis = ea.dir.cross(pos12.rotation * eb.dir);
                 let len = axis.length();
                 if len < 1e-5 {
                     continue;
@@ -342,7 +343,7 @@ fn edge_stage(
                 if axis.dot(p_a - centroid_a) < 0.0 {
                     axis = -axis;
                 }
-                let s = axis.dot(arcs.point[ib] - p_a);
+                let s = axis.dot(pb[eb.vertices[0] as usize] - p_a);
                 if s > prediction {
                     return Err(axis);
                 }
@@ -368,21 +369,17 @@ thread_local! {
 
 /// The edges of the second piece on the Gauss map, in the first piece's frame, stored by
 /// coordinate so that the crossing test runs over all of them at once (vectorised): per edge,
-/// its two adjacent face normals negated (`n1`, `n2`), their cross product, and the edge's
-/// direction and one of its points.
+/// its two adjacent face normals negated (`n1`, `n2`) and their cross product.
 #[derive(Default)]
 struct GaussArcs {
     n1: [Vec<Real>; 3],
     n2: [Vec<Real>; 3],
     cross: [Vec<Real>; 3],
-    dir: Vec<Vector>,
-    point: Vec<Vector>,
 }
 
 impl GaussArcs {
-    /// Refills with the arcs of `b`, whose face normals `nb` and points `pb` are already in A's
-    /// frame.
-    fn fill(&mut self, b: &ConvexPolyhedron, pos12: &Pose, nb: &[Vector], pb: &[Vector]) {
+    /// Refills with the arcs of `b`, whose face normals `nb` are already in A's frame.
+    fn fill(&mut self, b: &ConvexPolyhedron, nb: &[Vector]) {
         for v in self
             .n1
             .iter_mut()
@@ -391,8 +388,6 @@ impl GaussArcs {
         {
             v.clear();
         }
-        self.dir.clear();
-        self.point.clear();
         for e in b.edges() {
             let (c, d) = (-nb[e.faces[0] as usize], -nb[e.faces[1] as usize]);
             let x = d.cross(c);
@@ -401,13 +396,11 @@ impl GaussArcs {
                 self.n2[k].push(d[k]);
                 self.cross[k].push(x[k]);
             }
-            self.dir.push(pos12.rotation * e.dir);
-            self.point.push(pb[e.vertices[0] as usize]);
         }
     }
 
     fn len(&self) -> usize {
-        self.dir.len()
+        self.n1[0].len()
     }
 
     /// Which arcs cross the arc (fa1, fa2) of an edge of A: the Gauss-map test of
