@@ -9,6 +9,7 @@ pub mod error;
 pub mod geometry;
 pub mod manifold;
 pub mod pose;
+pub mod primitives;
 pub mod registration;
 pub mod robot;
 pub mod sensing;
