@@ -13,6 +13,7 @@ use crate::geometry::PartPair;
 use crate::robot::{Inertial, Iso, RobotModel, Tool};
 use crate::sensing::{SensorParams, Sensors, Wrench6};
 use crate::sim::arm::Arm;
+use crate::sim::penetration::PenetrationProbe;
 use crate::sim::{
     PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
     set_prediction_for_speed,
@@ -112,7 +113,26 @@ pub struct Cell {
     tau_link: DVector<f64>,
     /// An external wrench pushed onto the TCP (base frame, torque about the TCP), for diagnostics.
     pub push: Option<Wrench6>,
+    /// Joint positions as the encoders read them at the last control cycle, rad.
+    q_measured: Vec<f64>,
+    /// Exact penetration check of the peg against the fixture (fault detection).
+    probe: Option<(PenetrationProbe, crate::geometry::solid::Solid)>,
+    /// Largest exact penetration before the physics counts as blown up, m.
+    penetration_fault_m: f64,
 }
+
+/// Why a simulation stopped being trustworthy.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SimFault {
+    /// Simulated time of detection, s.
+    pub time_s: f64,
+    pub reason: String,
+}
+
+/// Steps between exact penetration checks.
+const PENETRATION_CHECK_STEPS: u64 = 20;
+/// A joint faster than this multiple of its speed limit is a runaway.
+const RUNAWAY_FACTOR: f64 = 3.0;
 
 impl Cell {
     /// Builds the cell with the arm at rest at `start_tcp` (base frame) under Cartesian impedance
@@ -202,6 +222,9 @@ impl Cell {
             tau: DVector::zeros(n),
             tau_link: DVector::zeros(n),
             push: None,
+            q_measured: q0.clone(),
+            probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
+            penetration_fault_m: pair.clearance_m.max(0.1e-3),
         };
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.
         let k = cell.model.kinematics(&q0);
@@ -254,6 +277,7 @@ impl Cell {
         let q = self.arm.q(&self.world);
         let qd = self.arm.qd(&self.world);
         let q_meas = self.sensors.read_q(&q);
+        self.q_measured.clone_from(&q_meas);
         let tau_meas = self.sensors.read_torques(&self.tau_link, period);
         let gravity = Vector3::from(self.controller.params.gravity);
         let d = self.model.dynamics(&q_meas, &gravity);
@@ -281,6 +305,50 @@ impl Cell {
     /// True joint positions, rad.
     pub fn q(&self) -> Vec<f64> {
         self.arm.q(&self.world)
+    }
+
+    /// The TCP pose the robot reports: forward kinematics of the encoder readings at the last
+    /// control cycle (base frame).
+    pub fn measured_tcp_pose(&self) -> Iso {
+        self.model.tcp_pose(&self.q_measured)
+    }
+
+    /// A reason to stop trusting the physics, if there is one: non-finite joint state, a joint
+    /// running away (faster than three times its speed limit), or the peg inside the fixture by
+    /// more than the clearance (checked exactly every 20 steps).
+    pub fn fault(&self) -> Option<SimFault> {
+        let fault = |reason: String| {
+            Some(SimFault {
+                time_s: self.time_s(),
+                reason,
+            })
+        };
+        let q = self.q();
+        let qd = self.arm.qd(&self.world);
+        if q.iter().chain(&qd).any(|v| !v.is_finite()) {
+            return fault("joint state is not finite (NaN or infinite)".into());
+        }
+        for (j, v) in self.model.joints.iter().zip(&qd) {
+            if v.abs() > RUNAWAY_FACTOR * j.velocity_limit {
+                return fault(format!(
+                    "runaway velocity: joint '{}' at {v:.3} rad/s, limit {} rad/s",
+                    j.name, j.velocity_limit
+                ));
+            }
+        }
+        if let Some((probe, peg)) = &self.probe
+            && self.steps.is_multiple_of(PENETRATION_CHECK_STEPS)
+        {
+            let depth = probe.max_penetration(peg, &self.tcp_pose());
+            if depth > self.penetration_fault_m {
+                return fault(format!(
+                    "penetration {:.3} mm beyond the bound {:.3} mm",
+                    depth * 1e3,
+                    self.penetration_fault_m * 1e3
+                ));
+            }
+        }
+        None
     }
 
     /// True TCP pose, base frame.

@@ -213,6 +213,8 @@ pub struct SamplingMotion {
     pub schedule: AmplitudeSchedule,
     /// Multiplies every amplitude.
     pub scale: f64,
+    /// Time offset of the spiral and the oscillation, s (episodes start at different phases).
+    pub phase_s: f64,
 }
 
 impl SamplingMotion {
@@ -233,8 +235,8 @@ impl SamplingMotion {
             amplitude_rad: amplitudes,
             frequency_hz: self.frequency_hz,
         };
-        let [x, y] = spiral.offset(t_s);
-        let [roll, pitch, yaw] = oscillation.angles(t_s);
+        let [x, y] = spiral.offset(t_s + self.phase_s);
+        let [roll, pitch, yaw] = oscillation.angles(t_s + self.phase_s);
         Pose6([
             x + noise[0],
             y + noise[1],
@@ -287,8 +289,8 @@ mod tests {
         };
         for k in 0..1000 {
             let a = o.angles(k as f64 * 0.01);
-            for i in 0..3 {
-                assert!(a[i].abs() <= o.amplitude_rad[i] + 1e-15);
+            for (v, amp) in a.iter().zip(o.amplitude_rad) {
+                assert!(v.abs() <= amp + 1e-15);
             }
         }
         let d = Descent {

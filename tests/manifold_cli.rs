@@ -205,3 +205,106 @@ fn bad_csv_and_flags_are_clear_errors_with_exit_2() {
         assert!(stderr(&o).contains(expected), "{}", stderr(&o));
     }
 }
+
+#[test]
+fn manifold_build_samples_contacts_inside_the_hole_deterministically() {
+    let dir = tempfile::tempdir().unwrap();
+    let build = |name: &str, threads: &str| {
+        let out = dir.path().join(name);
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_pegtwin"))
+            .args([
+                "manifold",
+                "build",
+                "--geometry",
+                "cross",
+                "--clearance-mm",
+                "0.5",
+                "--episodes",
+                "2",
+            ])
+            .args([
+                "--episode-s",
+                "3",
+                "--points",
+                "400",
+                "--seed",
+                "4",
+                "--quiet",
+                "--out",
+            ])
+            .arg(&out)
+            .env("RAYON_NUM_THREADS", threads)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let one = build("one.manifold", "1");
+    let two = build("two.manifold", "2");
+    assert_eq!(
+        std::fs::read(&one).unwrap(),
+        std::fs::read(&two).unwrap(),
+        "1 vs 2 threads"
+    );
+    let info = pegtwin(&["manifold", "info", one.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(v["points"], 400);
+    assert_eq!(v["meta"]["geometry"], "cross");
+    assert!((v["meta"]["clearance_m"].as_f64().unwrap() - 0.5e-3).abs() < 1e-12);
+    let r = &v["ranges_m_rad"];
+    for axis in 0..2 {
+        for end in 0..2 {
+            assert!(
+                r[axis][end].as_f64().unwrap().abs() < 0.5e-3,
+                "x, y within the hole's play: {r}"
+            );
+        }
+    }
+    assert!(r[2][1].as_f64().unwrap() < 0.0, "tip below the mouth: {r}");
+}
+
+#[test]
+fn manifold_build_rejects_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.manifold");
+    let out = out.to_str().unwrap();
+    for (args, needle) in [
+        (
+            vec!["--geometry", "banana", "--clearance-mm", "0.5"],
+            "banana",
+        ),
+        (
+            vec!["--geometry", "cross", "--clearance-mm", "-1"],
+            "clearance",
+        ),
+        (
+            vec![
+                "--geometry",
+                "cross",
+                "--clearance-mm",
+                "0.5",
+                "--points",
+                "5",
+            ],
+            "--points 5",
+        ),
+        (
+            vec![
+                "--geometry",
+                "cross",
+                "--clearance-mm",
+                "0.5",
+                "--episodes",
+                "0",
+            ],
+            "episodes",
+        ),
+    ] {
+        let mut all = vec!["manifold", "build", "--quiet", "--out", out];
+        all.extend(args);
+        let o = pegtwin(&all);
+        assert_eq!(o.status.code(), Some(2), "{all:?}");
+        assert!(stderr(&o).contains(needle), "{all:?}: {}", stderr(&o));
+        assert!(!std::path::Path::new(out).exists(), "no output on error");
+    }
+}

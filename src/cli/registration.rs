@@ -2,6 +2,7 @@
 //! line.
 
 use crate::error::{Error, Result};
+use crate::manifold::build::SamplerConfig;
 use crate::manifold::file::{self, read_csv};
 use crate::manifold::synthetic::SyntheticPair;
 use crate::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
@@ -44,6 +45,11 @@ pub enum ManifoldAction {
     /// Sample an analytic contact manifold of a prismatic square or cross peg (test data with a
     /// known ground truth), and optionally observations of it through a hole pose.
     Synth(SynthArgs),
+    /// Build the reference contact manifold of a pair in simulation (paper IV-B): the robot, under
+    /// low stiffness, probes the hole at a known pose with the sampling primitives over many
+    /// parallel episodes and records the poses where its estimated wrench says contact; the cloud
+    /// is downsampled by a voxel grid and given normals.
+    Build(BuildArgs),
 }
 
 /// The 6-D metric and the neighbourhood size of normals.
@@ -224,8 +230,95 @@ pub fn manifold_command(action: ManifoldAction) -> Result<i32> {
             println!("wrote {} ({} poses)", out.display(), m.len());
         }
         ManifoldAction::Synth(args) => synth(args)?,
+        ManifoldAction::Build(args) => build(args)?,
     }
     Ok(0)
+}
+
+#[derive(Args)]
+pub struct BuildArgs {
+    /// Built-in geometry name (see `geometry list`).
+    #[arg(long)]
+    pub geometry: String,
+    /// Diametral clearance, mm.
+    #[arg(long)]
+    pub clearance_mm: f64,
+    /// Output manifold file.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Poses kept after downsampling (the paper found 1e4-1e5 best).
+    #[arg(long, default_value_t = 50_000)]
+    pub points: usize,
+    /// Independent sampling episodes (simulations run in parallel).
+    #[arg(long, default_value_t = SamplerConfig::default().episodes)]
+    pub episodes: usize,
+    /// Simulated seconds per episode.
+    #[arg(long, default_value_t = SamplerConfig::default().episode_s)]
+    pub episode_s: f64,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn build(args: BuildArgs) -> Result<()> {
+    let clearance_m = args.clearance_mm * 1e-3;
+    crate::geometry::check_clearance(clearance_m)?;
+    let pair = crate::geometry::build_builtin(
+        crate::geometry::builtin_by_name(&args.geometry)?,
+        clearance_m,
+    )?;
+    let robot = crate::robot::urdf::iiwa14()?;
+    let config = SamplerConfig {
+        episodes: args.episodes,
+        episode_s: args.episode_s,
+        ..Default::default()
+    };
+    let bar = indicatif::ProgressBar::new(config.episodes as u64);
+    if args.quiet {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    } else {
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{msg} [{bar:40}] {pos}/{len} episodes, {elapsed} elapsed, ETA {eta}",
+            )
+            .expect("template parses")
+            .progress_chars("=> "),
+        );
+        bar.set_message(format!(
+            "sampling {} at {} mm",
+            args.geometry, args.clearance_mm
+        ));
+    }
+    let started = std::time::Instant::now();
+    let report = crate::manifold::build::build(
+        &pair,
+        &robot,
+        &crate::cell::CellParams::default(),
+        &config,
+        args.points,
+        args.seed,
+        &|| bar.inc(1),
+    )?;
+    bar.finish_and_clear();
+    file::save(&report.manifold, &args.out)?;
+    for (episode, fault) in &report.faults {
+        eprintln!(
+            "warning: episode {episode} dropped: sim_fault at {:.3} s: {}",
+            fault.time_s, fault.reason
+        );
+    }
+    println!(
+        "{} episodes x {} s in {:.1} s: {} contact poses recorded, {} kept (voxel grid)",
+        config.episodes,
+        config.episode_s,
+        started.elapsed().as_secs_f64(),
+        report.raw_count,
+        report.manifold.len()
+    );
+    print_info(&args.out, &report.manifold, false);
+    Ok(())
 }
 
 fn synth(args: SynthArgs) -> Result<()> {

@@ -10,6 +10,7 @@
 //!
 //! Files: [`self::file`] (versioned binary with a checksum, and CSV). Test data: [`synthetic`].
 
+pub mod build;
 pub mod file;
 pub mod synthetic;
 
