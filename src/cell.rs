@@ -107,6 +107,8 @@ pub struct Cell {
     peg_reach_m: f64,
     steps_per_cycle: usize,
     steps: u64,
+    /// Physics step, s.
+    dt_s: f64,
     /// Torques being applied, N m.
     tau: DVector<f64>,
     /// Link-side joint torques of the last physics step, N m.
@@ -219,6 +221,7 @@ impl Cell {
             peg_reach_m,
             steps_per_cycle,
             steps: 0,
+            dt_s: dt,
             tau: DVector::zeros(n),
             tau_link: DVector::zeros(n),
             push: None,
@@ -235,9 +238,14 @@ impl Cell {
         Ok(cell)
     }
 
+    /// Physics step, s.
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
     /// Simulated time, s.
     pub fn time_s(&self) -> f64 {
-        self.steps as f64 * self.world.integration_parameters.dt as f64
+        self.steps as f64 * self.dt_s
     }
 
     /// Advances one physics step (running a control cycle first when one is due).
@@ -245,7 +253,7 @@ impl Cell {
         if self.steps.is_multiple_of(self.steps_per_cycle as u64) {
             self.control_cycle();
         }
-        let dt = self.world.integration_parameters.dt as f64;
+        let dt = self.dt_s;
         self.arm.apply_torques(&mut self.world, self.tau.as_slice());
         if let Some(w) = self.push {
             self.apply_push(&w);
@@ -266,7 +274,7 @@ impl Cell {
 
     /// Runs `seconds` of simulated time.
     pub fn run(&mut self, seconds: f64) {
-        let n = (seconds / self.world.integration_parameters.dt as f64).round() as usize;
+        let n = (seconds / self.dt_s).round() as usize;
         for _ in 0..n {
             self.step();
         }

@@ -14,4 +14,5 @@ pub mod registration;
 pub mod robot;
 pub mod sensing;
 pub mod sim;
+pub mod trial;
 pub mod validate;

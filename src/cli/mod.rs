@@ -11,8 +11,10 @@ use std::path::PathBuf;
 
 mod registration;
 mod robot;
+mod trial;
 pub use registration::{ManifoldAction, RegisterArgs};
 pub use robot::RobotAction;
+pub use trial::TrialArgs;
 
 #[derive(Parser)]
 #[command(
@@ -48,6 +50,9 @@ pub enum Command {
         #[command(subcommand)]
         action: RobotAction,
     },
+    /// One online trial: a randomly offset hole, contact observation, registration, insertion
+    /// (or the direct-insertion baseline).
+    Trial(TrialArgs),
 }
 
 #[derive(Subcommand)]
@@ -164,6 +169,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Manifold { action } => registration::manifold_command(action),
         Command::Register(args) => registration::register_command(args),
         Command::Robot { action } => robot::robot_command(action),
+        Command::Trial(args) => trial::trial_command(args),
     }
 }
 

@@ -90,7 +90,7 @@ pub struct SynthArgs {
     #[arg(long, value_enum)]
     pub shape: SynthShape,
     /// Diametral clearance, mm.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub clearance_mm: f64,
     /// Contact poses in the manifold.
     #[arg(long, default_value_t = 100_000)]
@@ -241,7 +241,7 @@ pub struct BuildArgs {
     #[arg(long)]
     pub geometry: String,
     /// Diametral clearance, mm.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub clearance_mm: f64,
     /// Output manifold file.
     #[arg(long)]

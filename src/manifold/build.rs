@@ -50,9 +50,9 @@ impl Default for SamplerConfig {
             episode_s: 20.0,
             gains: ImpedanceGains {
                 stiffness: [1000.0, 1000.0, 1500.0, 30.0, 30.0, 30.0],
-                // A light, constant push into the hole (TCP z points up the peg) keeps the peg
-                // seated while the spiral and the tilts press it against the walls.
-                additional_force: [0.0, 0.0, -3.0, 0.0, 0.0, 0.0],
+                // A constant push into the hole (TCP z points up the peg) keeps the peg seated
+                // while the spiral and the tilts press it against the walls.
+                additional_force: [0.0, 0.0, -5.0, 0.0, 0.0, 0.0],
                 ..Default::default()
             },
             motion: SamplingMotion {
@@ -70,8 +70,8 @@ impl Default for SamplerConfig {
                     correlation_time_s: 0.2,
                 },
                 schedule: AmplitudeSchedule {
-                    lateral_overtravel_m: 6e-3,
-                    angular_overtravel_rad: 0.02,
+                    lateral_overtravel_m: 8e-3,
+                    angular_overtravel_rad: 0.06,
                     max_free_tilt_rad: 0.035,
                     yaw_fraction: 1.0,
                 },
@@ -97,6 +97,9 @@ impl SamplerConfig {
         self.gains.validate()
     }
 }
+
+/// Tip height above the mouth at which an episode counts the peg as out of the hole, m.
+const LEFT_HOLE_M: f64 = 1e-3;
 
 /// What one episode produced.
 pub struct Episode {
@@ -147,8 +150,16 @@ pub fn run_episode(
                 fault: Some(fault),
             });
         }
-        if cell.sensors.contact {
-            poses.push(Pose6::from_iso(&(hole_inv * cell.measured_tcp_pose())));
+        if !cell.sensors.contact {
+            continue;
+        }
+        let pose = Pose6::from_iso(&(hole_inv * cell.measured_tcp_pose()));
+        // The engagement only: the tip below the mouth. A peg levered out of the hole does not
+        // find its way back; the episode ends there.
+        if pose.0[2] < 0.0 {
+            poses.push(pose);
+        } else if pose.0[2] > LEFT_HOLE_M {
+            break;
         }
     }
     Ok(Episode { poses, fault: None })

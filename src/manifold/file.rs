@@ -37,7 +37,7 @@ pub const POSE_COLUMNS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 pub const NORMAL_COLUMNS: [&str; 6] = ["nx", "ny", "nz", "nroll", "npitch", "nyaw"];
 
 /// Write `bytes` to `path` through a temporary file and a rename.
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     let name = path
         .file_name()
         .ok_or_else(|| Error::file(path, "is not a file path"))?;

@@ -1,0 +1,187 @@
+//! `pegtwin trial`: one online trial, the manifold method or the direct baseline.
+
+use crate::cell::CellParams;
+use crate::error::{Error, Result};
+use crate::geometry::{self, PartPair};
+use crate::manifold::Manifold;
+use crate::manifold::build::SamplerConfig;
+use crate::manifold::file;
+use crate::trial::{Method, TrialConfig, TrialResult, check_manifold, run_trial, trace_csv};
+use clap::Args;
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct TrialArgs {
+    /// Built-in geometry name (see `geometry list`).
+    #[arg(long)]
+    pub geometry: String,
+    /// Diametral clearance, mm.
+    #[arg(long, allow_negative_numbers = true)]
+    pub clearance_mm: f64,
+    /// Observation time, s.
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    pub t_obs: f64,
+    #[arg(long, value_enum, default_value = "manifold")]
+    pub method: Method,
+    /// Trial seed: draws the hole offset and seeds every noise source.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Half-range of the hole's position offset, mm (U(-r, r) on x, y, z).
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    pub offset_mm: f64,
+    /// Half-range of the hole's orientation offset, deg (U(-r, r) on roll, pitch, yaw).
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    pub offset_deg: f64,
+    /// Reference manifold file (default: the cache, built on demand).
+    #[arg(long)]
+    pub manifold: Option<PathBuf>,
+    /// Folder of cached manifolds (default: $XDG_CACHE_HOME/pegtwin or ~/.cache/pegtwin).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Print the result as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the time series (time, phase, TCP pose, estimated and true wrench, contact) as CSV.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
+}
+
+pub fn trial_command(args: TrialArgs) -> Result<i32> {
+    let clearance_m = args.clearance_mm * 1e-3;
+    geometry::check_clearance(clearance_m)?;
+    let pair = geometry::build_builtin(geometry::builtin_by_name(&args.geometry)?, clearance_m)?;
+    for (flag, v) in [
+        ("--offset-mm", args.offset_mm),
+        ("--offset-deg", args.offset_deg),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(Error::Input(format!(
+                "{flag} {v}: expected a half-range >= 0"
+            )));
+        }
+    }
+    let (m, a) = (args.offset_mm * 1e-3, args.offset_deg.to_radians());
+    let config = TrialConfig {
+        method: args.method,
+        t_obs_s: args.t_obs,
+        offset_range: [m, m, m, a, a, a],
+        ..Default::default()
+    };
+    config.validate()?;
+    let robot = crate::robot::urdf::iiwa14()?;
+    let params = CellParams::default();
+    let manifold = match args.method {
+        Method::Manifold => Some(reference_manifold(&args, &pair, &robot, &params)?),
+        Method::Direct => None,
+    };
+    let mut trace = args.trace.as_ref().map(|_| Vec::new());
+    let result = run_trial(
+        &pair,
+        &robot,
+        &params,
+        &config,
+        manifold.as_ref(),
+        args.seed,
+        trace.as_mut(),
+    )?;
+    if let (Some(path), Some(rows)) = (&args.trace, &trace) {
+        file::write_atomically(path, &trace_csv(rows))?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&result).expect("result serialises")
+        );
+    } else {
+        print_result(&result);
+    }
+    Ok(0)
+}
+
+/// The manifold given, or the cached one for this pair, built (and cached) when missing.
+fn reference_manifold(
+    args: &TrialArgs,
+    pair: &PartPair,
+    robot: &crate::robot::RobotModel,
+    params: &CellParams,
+) -> Result<Manifold> {
+    if let Some(path) = &args.manifold {
+        let m = file::load(path)?;
+        check_manifold(&m, pair, path)?;
+        return Ok(m);
+    }
+    let dir = match &args.cache_dir {
+        Some(d) => d.clone(),
+        None => default_cache_dir()?,
+    };
+    let path = dir.join(format!(
+        "{}-{}mm.manifold",
+        args.geometry, args.clearance_mm
+    ));
+    if path.is_file() {
+        let m = file::load(&path)?;
+        check_manifold(&m, pair, &path)?;
+        return Ok(m);
+    }
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| Error::file(&dir, format!("cannot create the cache folder: {e}")))?;
+    eprintln!(
+        "building the reference manifold of {} at {} mm into {} (once)",
+        args.geometry,
+        args.clearance_mm,
+        path.display()
+    );
+    let config = SamplerConfig::default();
+    let bar = indicatif::ProgressBar::new(config.episodes as u64);
+    let report =
+        crate::manifold::build::build(pair, robot, params, &config, 50_000, 1, &|| bar.inc(1))?;
+    bar.finish_and_clear();
+    file::save(&report.manifold, &path)?;
+    Ok(report.manifold)
+}
+
+fn default_cache_dir() -> Result<PathBuf> {
+    if let Some(x) = std::env::var_os("XDG_CACHE_HOME").filter(|v| !v.is_empty()) {
+        return Ok(Path::new(&x).join("pegtwin"));
+    }
+    std::env::var_os("HOME")
+        .map(|h| Path::new(&h).join(".cache").join("pegtwin"))
+        .ok_or_else(|| {
+            Error::Input("no cache folder: set --cache-dir, XDG_CACHE_HOME or HOME".into())
+        })
+}
+
+fn print_result(r: &TrialResult) {
+    let o = r.offset;
+    println!(
+        "{} at {} mm, method {:?}, seed {}, t_obs {} s",
+        r.geometry, r.clearance_mm, r.method, r.seed, r.t_obs_s
+    );
+    println!(
+        "hole offset: x {:.2} y {:.2} z {:.2} mm, roll {:.2} pitch {:.2} yaw {:.2} deg",
+        o[0], o[1], o[2], o[3], o[4], o[5]
+    );
+    if let Some(e) = &r.errors {
+        println!(
+            "estimate error: x {:.3} y {:.3} z {:.3} mm, roll {:.3} pitch {:.3} yaw {:.3} deg",
+            e.x_mm, e.y_mm, e.z_mm, e.roll_deg, e.pitch_deg, e.yaw_deg
+        );
+    }
+    println!(
+        "outcome: {} (tip {:.2} mm below the mouth); {} contact observations, {} used; Fz peak {:.1} N, mean {:.1} N",
+        r.outcome,
+        r.final_depth_mm,
+        r.contact_observations,
+        r.observations_used,
+        r.peak_fz_n,
+        r.mean_fz_n
+    );
+    if let Some(f) = &r.fault {
+        println!("sim_fault at {:.3} s: {}", f.time_s, f.reason);
+    }
+    let t = &r.times;
+    println!(
+        "time: observe {:.1} s, register {:.2} s wall, retract {:.2} s, align {:.2} s, insert {:.2} s; {:.1} s wall in all",
+        t.observe_s, t.register_wall_s, t.retract_s, t.align_s, t.insert_s, r.wall_s
+    );
+}
