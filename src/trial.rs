@@ -52,6 +52,8 @@ pub struct TrialConfig {
     pub phase1_scale: f64,
     pub phase2_scale: f64,
     pub observe_depth_m: f64,
+    /// Share of `t_obs` spent descending to `observe_depth_m` (phase 1).
+    pub phase1_fraction: f64,
     /// Gains of the observation motions: compliant, and softest in rotation, so that the
     /// orientation error of the nominal pose presses the peg only lightly against the walls.
     pub observe_gains: ImpedanceGains,
@@ -84,8 +86,9 @@ impl Default for TrialConfig {
             offset_range: [d, d, d, a, a, a],
             start_depth_m: 3e-3,
             phase1_scale: 1.0,
-            phase2_scale: 0.5,
-            observe_depth_m: 12e-3,
+            phase2_scale: 0.8,
+            observe_depth_m: 18e-3,
+            phase1_fraction: 0.4,
             observe_gains: ImpedanceGains {
                 stiffness: [1000.0, 1000.0, 1500.0, 5.0, 5.0, 5.0],
                 additional_force: [0.0, 0.0, -5.0, 0.0, 0.0, 0.0],
@@ -124,6 +127,12 @@ impl TrialConfig {
             return Err(Error::Input(format!(
                 "offset range {:?}: expected finite half-ranges >= 0",
                 self.offset_range
+            )));
+        }
+        if !(self.phase1_fraction > 0.0 && self.phase1_fraction <= 1.0) {
+            return Err(Error::Input(format!(
+                "phase1_fraction {}: expected a share in (0, 1]",
+                self.phase1_fraction
             )));
         }
         self.observe_gains.validate()?;
@@ -308,6 +317,7 @@ pub fn run_trial(
     // uncertainty of the nominal pose.
     let r = &config.offset_range;
     motion.schedule.lateral_overtravel_m += r[0].max(r[1]);
+    motion.schedule.angular_overtravel_rad += r[3].max(r[4]);
     motion.descent = Descent {
         start_depth_m: config.start_depth_m,
         end_depth_m: config.observe_depth_m,
