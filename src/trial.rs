@@ -99,7 +99,7 @@ impl Default for TrialConfig {
             align_gains: ImpedanceGains::uniform(4000.0, 250.0, 0.7),
             align_s: 1.0,
             insert_gains: ImpedanceGains {
-                stiffness: [800.0, 800.0, 2000.0, 20.0, 20.0, 50.0],
+                stiffness: [1500.0, 1500.0, 2000.0, 50.0, 50.0, 50.0],
                 ..Default::default()
             },
             insert_speed_m_per_s: 10e-3,
@@ -409,6 +409,8 @@ pub fn run_trial(
         // Compliant insertion along the frame's z down past the floor, within the time limit.
         run.phase = "insert";
         run.switch_gains(config.insert_gains.clone());
+        // A full cavity depth and more below where it starts: past the floor wherever the hole
+        // really is (the estimate's z is its weakest axis).
         let travel = pair.cavity_depth_m + 5e-3;
         let t2 = run.cell.time_s();
         // Until the target has travelled its way and settled for half a second, or the limit.
