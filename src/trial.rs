@@ -102,7 +102,7 @@ impl Default for TrialConfig {
                 stiffness: [1500.0, 1500.0, 2000.0, 50.0, 50.0, 50.0],
                 ..Default::default()
             },
-            insert_speed_m_per_s: 10e-3,
+            insert_speed_m_per_s: 15e-3,
             insert_limit_s: 6.0,
             success_eps_m: 2e-3,
             registration: RegistrationConfig::default(),
