@@ -37,11 +37,28 @@ pub enum Method {
     Direct,
 }
 
+/// How a trial starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Start {
+    /// Partially inserted in the true hole (the paper's set-up).
+    Partial,
+    /// Above the nominal hole: approach, then a spiral search pressing on the surface until the
+    /// peg drops in, then down to the partial insertion.
+    Above,
+}
+
+/// Height above the highest possible mouth at which a search starts, m.
+const SEARCH_CLEARANCE_M: f64 = 5e-3;
+
 /// Everything a trial does.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrialConfig {
     pub method: Method,
+    pub start: Start,
+    /// Spiral search from above: time limit, s.
+    pub search_limit_s: f64,
     /// Observation time, s.
     pub t_obs_s: f64,
     /// Half-ranges of the uniform hole offset: x, y, z (m), roll, pitch, yaw (rad).
@@ -82,6 +99,8 @@ impl Default for TrialConfig {
         let a = 5f64.to_radians();
         TrialConfig {
             method: Method::Manifold,
+            start: Start::Partial,
+            search_limit_s: 30.0,
             t_obs_s: 10.0,
             offset_range: [d, d, d, a, a, a],
             start_depth_m: 3e-3,
@@ -156,6 +175,7 @@ pub struct AxisErrors {
 /// Simulated time per phase, s (rounded to the microsecond).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct PhaseTimes {
+    pub search_s: f64,
     pub observe_s: f64,
     /// Wall time of the registration (not part of the deterministic JSON result).
     #[serde(skip)]
@@ -172,11 +192,14 @@ pub struct TrialResult {
     pub geometry: String,
     pub clearance_mm: f64,
     pub method: Method,
+    pub start: Start,
     pub t_obs_s: f64,
     /// The true hole offset from nominal, mm and deg.
     pub offset: [f64; 6],
     /// `success`, `failure` or `sim_fault`.
     pub outcome: String,
+    /// Why the trial stopped before inserting, if it did.
+    pub stopped: Option<String>,
     pub success: bool,
     pub fault: Option<SimFault>,
     /// Estimated `base_T_hole` (m, rad), manifold method only.
@@ -287,31 +310,66 @@ pub fn run_trial(
     let nominal = nominal_hole_pose(pair, params);
     let offset = draw_offset(seed, &config.offset_range);
     let truth = nominal * offset.to_iso();
-    // Experiment set-up: the peg partially inserted in the true hole, the robot commanded to the
-    // partial insertion it believes in (the nominal hole), its compliance taking up the difference.
-    let start = tcp_in_hole(&truth, config.start_depth_m);
     let sampler = SamplerConfig::default();
-    let mut cell = Cell::new(
-        pair,
-        robot.clone(),
-        params,
-        Some(truth),
-        &start,
-        config.observe_gains.clone(),
-        seed,
-    )?;
-    cell.controller
-        .set_cartesian_target(tcp_in_hole(&nominal, config.start_depth_m));
+    let mut cell = match config.start {
+        // The paper's set-up: the peg partially inserted in the true hole, the robot commanded to
+        // the partial insertion it believes in (nominal), its compliance taking up the difference.
+        Start::Partial => {
+            let start = tcp_in_hole(&truth, config.start_depth_m);
+            let mut cell = Cell::new(
+                pair,
+                robot.clone(),
+                params,
+                Some(truth),
+                &start,
+                config.observe_gains.clone(),
+                seed,
+            )?;
+            cell.controller
+                .set_cartesian_target(tcp_in_hole(&nominal, config.start_depth_m));
+            cell
+        }
+        // Above the nominal mouth, clear of the highest hole the offsets allow.
+        Start::Above => {
+            let above = tcp_in_hole(&nominal, -(config.offset_range[2] + SEARCH_CLEARANCE_M));
+            Cell::new(
+                pair,
+                robot.clone(),
+                params,
+                Some(truth),
+                &above,
+                config.observe_gains.clone(),
+                seed,
+            )?
+        }
+    };
     let mut run = Run {
         cell: &mut cell,
         trace,
         fault: None,
-        phase: "observe",
+        phase: "search",
     };
+    let believed = match config.start {
+        Start::Partial => Some(nominal),
+        Start::Above => search(&mut run, &nominal, config, pair.clearance_m),
+    };
+    let Some(believed) = believed else {
+        return Ok(unfinished(
+            pair,
+            config,
+            seed,
+            &offset,
+            run.fault.clone(),
+            started,
+            "search found no hole",
+        ));
+    };
+    run.phase = "observe";
+    let search_end_s = run.cell.time_s();
 
     // Observation (IV-C) in the hole frame the robot believes in: phase 1 wide amplitudes while
     // descending to the target depth, phase 2 smaller ones there.
-    let frame = nominal;
+    let frame = believed;
     let mut motion = sampler.motion.clone();
     // The sweep must reach past the hole wherever it really is: widen the amplitudes by the
     // uncertainty of the nominal pose.
@@ -347,7 +405,8 @@ pub fn run_trial(
         }
     }
     let mut times = PhaseTimes {
-        observe_s: run.cell.time_s(),
+        search_s: search_end_s,
+        observe_s: run.cell.time_s() - search_end_s,
         ..Default::default()
     };
     let contact_observations = contacts.len();
@@ -363,7 +422,7 @@ pub fn run_trial(
             let reg = register(
                 manifold,
                 &observations,
-                &Pose6::from_iso(&nominal),
+                &Pose6::from_iso(&believed),
                 &config.registration,
             )?;
             times.register_wall_s = t0.elapsed().as_secs_f64();
@@ -403,7 +462,7 @@ pub fn run_trial(
             // from the present depth.
             None => {
                 let now = run.cell.measured_tcp_pose();
-                tcp_in_hole(&nominal, -(nominal.inverse() * now).translation.z)
+                tcp_in_hole(&believed, -(believed.inverse() * now).translation.z)
             }
         };
         // Compliant insertion along the frame's z down past the floor, within the time limit.
@@ -450,6 +509,7 @@ pub fn run_trial(
         geometry: pair.name.clone(),
         clearance_mm: pair.clearance_m * 1e3,
         method: config.method,
+        start: config.start,
         t_obs_s: config.t_obs_s,
         offset: to_mm_deg(&offset),
         outcome: if fault.is_some() {
@@ -460,6 +520,7 @@ pub fn run_trial(
             "failure"
         }
         .into(),
+        stopped: None,
         success,
         fault,
         estimate: estimate.map(|e| e.0),
@@ -486,6 +547,104 @@ fn to_mm_deg(p: &Pose6) -> [f64; 6] {
             p.0[i].to_degrees()
         }
     })
+}
+
+/// Spiral search from above (the classic peg-in-hole search): descend along the nominal axis until
+/// the estimated wrench says contact with the fixture's top, then press on it while an Archimedean
+/// spiral sweeps x, y over the pose uncertainty, until the tip drops 1 mm below the height of first
+/// contact; then down to the partial insertion. Returns the hole frame the robot now believes in
+/// (the nominal orientation, centred where the peg dropped, its mouth at the contact height), or
+/// `None` when the time limit passes first.
+fn search(run: &mut Run, nominal: &Iso, config: &TrialConfig, clearance_m: f64) -> Option<Iso> {
+    let dt = run.cell.dt_s();
+    let start = run.cell.measured_tcp_pose();
+    let height = (nominal.inverse() * start).translation.z;
+    let limit = (config.search_limit_s / dt).round() as usize;
+    let mut k = 0;
+    // Approach at 10 mm/s.
+    let mut contact_z = None;
+    while k < limit {
+        let z = height - 10e-3 * k as f64 * dt;
+        run.cell
+            .controller
+            .set_cartesian_target(nominal * Iso::translation(0.0, 0.0, z));
+        if !run.step() {
+            return None;
+        }
+        k += 1;
+        let tip = (nominal.inverse() * run.cell.measured_tcp_pose()).translation;
+        if run.cell.sensors.contact {
+            contact_z = Some(tip.z);
+            break;
+        }
+    }
+    let contact_z = contact_z?;
+    // Press 3 mm below the surface and spiral.
+    let r = &config.offset_range;
+    let spiral = crate::primitives::Spiral {
+        max_radius_m: r[0].max(r[1]) + clearance_m + 1e-3,
+        pitch_m: 0.5e-3,
+        speed_m_per_s: 10e-3,
+    };
+    let t0 = k;
+    while k < limit {
+        let [x, y] = spiral.offset((k - t0) as f64 * dt);
+        run.cell
+            .controller
+            .set_cartesian_target(nominal * Iso::translation(x, y, contact_z - 3e-3));
+        if !run.step() {
+            return None;
+        }
+        k += 1;
+        let tip = (nominal.inverse() * run.cell.measured_tcp_pose()).translation;
+        if tip.z < contact_z - 1e-3 {
+            let believed = nominal * Iso::translation(tip.x, tip.y, contact_z);
+            run.phase = "search";
+            let here = run.cell.measured_tcp_pose();
+            run.move_linear(&here, &tcp_in_hole(&believed, config.start_depth_m), 0.5);
+            return (run.fault.is_none()).then_some(believed);
+        }
+    }
+    None
+}
+
+/// The result of a trial that stopped before insertion (a fault or a failed search).
+fn unfinished(
+    pair: &PartPair,
+    config: &TrialConfig,
+    seed: u64,
+    offset: &Pose6,
+    fault: Option<SimFault>,
+    started: Instant,
+    why: &str,
+) -> TrialResult {
+    TrialResult {
+        seed,
+        geometry: pair.name.clone(),
+        clearance_mm: pair.clearance_m * 1e3,
+        method: config.method,
+        start: config.start,
+        t_obs_s: config.t_obs_s,
+        offset: to_mm_deg(offset),
+        outcome: if fault.is_some() {
+            "sim_fault"
+        } else {
+            "failure"
+        }
+        .into(),
+        stopped: Some(why.into()),
+        success: false,
+        fault,
+        estimate: None,
+        errors: None,
+        final_depth_mm: f64::NAN,
+        contact_observations: 0,
+        observations_used: 0,
+        peak_fz_n: 0.0,
+        mean_fz_n: 0.0,
+        times: PhaseTimes::default(),
+        wall_s: started.elapsed().as_secs_f64(),
+    }
 }
 
 /// Errors of an estimated hole pose: the estimate seen from the true hole frame, mm and deg.

@@ -172,3 +172,32 @@ fn bad_input_is_refused_with_exit_2() {
         assert!(stderr(&o).contains(needle), "{all:?}: {}", stderr(&o));
     }
 }
+
+#[test]
+fn a_search_from_above_finds_the_offset_hole_and_inserts() {
+    let pair = cross(0.5e-3);
+    let robot = pegtwin::robot::urdf::iiwa14().unwrap();
+    let config = TrialConfig {
+        method: Method::Direct,
+        start: pegtwin::trial::Start::Above,
+        t_obs_s: 2.0,
+        ..Default::default()
+    };
+    let r = run_trial(
+        &pair,
+        &robot,
+        &CellParams::default(),
+        &config,
+        None,
+        3,
+        None,
+    )
+    .unwrap();
+    assert_eq!(r.stopped, None, "{:?}", r.stopped);
+    assert!(r.times.search_s > 0.0 && r.times.search_s < config.search_limit_s);
+    assert!(
+        r.final_depth_mm > 5.0,
+        "the peg went in: {} mm",
+        r.final_depth_mm
+    );
+}

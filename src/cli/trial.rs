@@ -6,7 +6,7 @@ use crate::geometry::{self, PartPair};
 use crate::manifold::Manifold;
 use crate::manifold::build::SamplerConfig;
 use crate::manifold::file;
-use crate::trial::{Method, TrialConfig, TrialResult, check_manifold, run_trial, trace_csv};
+use crate::trial::{Method, Start, TrialConfig, TrialResult, check_manifold, run_trial, trace_csv};
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -23,6 +23,9 @@ pub struct TrialArgs {
     pub t_obs: f64,
     #[arg(long, value_enum, default_value = "manifold")]
     pub method: Method,
+    /// Start partially inserted (the paper's set-up) or above the hole with a spiral search.
+    #[arg(long, value_enum, default_value = "partial")]
+    pub start: Start,
     /// Trial seed: draws the hole offset and seeds every noise source.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -63,6 +66,7 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
     let (m, a) = (args.offset_mm * 1e-3, args.offset_deg.to_radians());
     let config = TrialConfig {
         method: args.method,
+        start: args.start,
         t_obs_s: args.t_obs,
         offset_range: [m, m, m, a, a, a],
         ..Default::default()
@@ -176,12 +180,15 @@ fn print_result(r: &TrialResult) {
         r.peak_fz_n,
         r.mean_fz_n
     );
+    if let Some(why) = &r.stopped {
+        println!("stopped before inserting: {why}");
+    }
     if let Some(f) = &r.fault {
         println!("sim_fault at {:.3} s: {}", f.time_s, f.reason);
     }
     let t = &r.times;
     println!(
-        "time: observe {:.1} s, register {:.2} s wall, retract {:.2} s, align {:.2} s, insert {:.2} s; {:.1} s wall in all",
-        t.observe_s, t.register_wall_s, t.retract_s, t.align_s, t.insert_s, r.wall_s
+        "time: search {:.1} s, observe {:.1} s, register {:.2} s wall, retract {:.2} s, align {:.2} s, insert {:.2} s; {:.1} s wall in all",
+        t.search_s, t.observe_s, t.register_wall_s, t.retract_s, t.align_s, t.insert_s, r.wall_s
     );
 }
