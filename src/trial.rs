@@ -354,14 +354,14 @@ pub fn run_trial(
         Start::Above => search(&mut run, &nominal, config, pair.clearance_m),
     };
     let Some(believed) = believed else {
-        return Ok(unfinished(
+        return Ok(stopped_result(
             pair,
             config,
             seed,
             &offset,
             run.fault.clone(),
             started,
-            "search found no hole",
+            Some("search found no hole"),
         ));
     };
     run.phase = "observe";
@@ -504,14 +504,8 @@ pub fn run_trial(
     let success =
         fault.is_none() && (final_depth - pair.cavity_depth_m).abs() <= config.success_eps_m;
     let errors = estimate.map(|e| axis_errors(&truth, &e.to_iso()));
+    let base = stopped_result(pair, config, seed, &offset, fault.clone(), started, None);
     Ok(TrialResult {
-        seed,
-        geometry: pair.name.clone(),
-        clearance_mm: pair.clearance_m * 1e3,
-        method: config.method,
-        start: config.start,
-        t_obs_s: config.t_obs_s,
-        offset: to_mm_deg(&offset),
         outcome: if fault.is_some() {
             "sim_fault"
         } else if success {
@@ -520,9 +514,7 @@ pub fn run_trial(
             "failure"
         }
         .into(),
-        stopped: None,
         success,
-        fault,
         estimate: estimate.map(|e| e.0),
         errors,
         final_depth_mm: final_depth * 1e3,
@@ -536,6 +528,7 @@ pub fn run_trial(
         },
         times,
         wall_s: started.elapsed().as_secs_f64(),
+        ..base
     })
 }
 
@@ -608,15 +601,16 @@ fn search(run: &mut Run, nominal: &Iso, config: &TrialConfig, clearance_m: f64) 
     None
 }
 
-/// The result of a trial that stopped before insertion (a fault or a failed search).
-fn unfinished(
+/// The result of a trial that stopped before inserting (a fault or a failed search, `why`), and
+/// the common part of every result.
+fn stopped_result(
     pair: &PartPair,
     config: &TrialConfig,
     seed: u64,
     offset: &Pose6,
     fault: Option<SimFault>,
     started: Instant,
-    why: &str,
+    why: Option<&str>,
 ) -> TrialResult {
     TrialResult {
         seed,
@@ -632,7 +626,7 @@ fn unfinished(
             "failure"
         }
         .into(),
-        stopped: Some(why.into()),
+        stopped: why.map(String::from),
         success: false,
         fault,
         estimate: None,

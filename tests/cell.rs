@@ -9,6 +9,16 @@ use pegtwin::robot::Iso;
 use pegtwin::robot::urdf::iiwa14;
 use pegtwin::sim::penetration::PenetrationProbe;
 
+/// The cell in free space (no fixture), the arm at rest at `start` under `gains`.
+fn free_cell(
+    pair: &PartPair,
+    params: &CellParams,
+    start: &Iso,
+    gains: ImpedanceGains,
+) -> Result<Cell, pegtwin::error::Error> {
+    Cell::new(pair, iiwa14().unwrap(), params, None, start, gains, 1)
+}
+
 fn cross(clearance_m: f64) -> PartPair {
     build_builtin(builtin_by_name("cross").unwrap(), clearance_m).unwrap()
 }
@@ -122,16 +132,7 @@ fn switching_to_joint_position_mode_holds_the_pose_without_a_torque_jump() {
     let params = CellParams::default();
     let hole = nominal_hole_pose(&pair, &params);
     let start = tcp_in_hole(&hole, -0.05);
-    let mut cell = Cell::new(
-        &pair,
-        iiwa14().unwrap(),
-        &params,
-        None,
-        &start,
-        ImpedanceGains::default(),
-        3,
-    )
-    .unwrap();
+    let mut cell = free_cell(&pair, &params, &start, ImpedanceGains::default()).unwrap();
     cell.run(0.5);
     let before = cell.tcp_pose();
     let q = cell.q();
@@ -173,13 +174,12 @@ fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
     let pair = cross(0.5e-3);
     let params = CellParams::default();
     let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
-    let robot = iiwa14().unwrap();
     // 10 N feed-forward along TCP z against 2000 N/m: the TCP moves 5 mm along its z.
     let gains = ImpedanceGains {
         additional_force: [0.0, 0.0, 10.0, 0.0, 0.0, 0.0],
         ..Default::default()
     };
-    let mut cell = Cell::new(&pair, robot.clone(), &params, None, &start, gains, 1).unwrap();
+    let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
     cell.run(2.0);
     let e = pegtwin::control::tcp_error(&cell.tcp_pose(), &start);
     assert!((e[2] - 0.005).abs() < 0.05e-3, "moved {e}");
@@ -188,7 +188,7 @@ fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
         max_control_force: Some([2.0, 50.0, 50.0, 5.0, 5.0, 5.0]),
         ..Default::default()
     };
-    let mut cell = Cell::new(&pair, robot, &params, None, &start, gains, 1).unwrap();
+    let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
     let x = start.rotation * nalgebra::Vector3::x();
     cell.push = Some(nalgebra::Vector6::new(
         6.0 * x.x,
@@ -214,30 +214,13 @@ fn control_rate_is_independent_of_the_physics_step() {
     let mut params = CellParams::default();
     params.controller.rate_hz = 500.0;
     let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
-    let mut cell = Cell::new(
-        &pair,
-        iiwa14().unwrap(),
-        &params,
-        None,
-        &start,
-        ImpedanceGains::default(),
-        1,
-    )
-    .unwrap();
+    let mut cell = free_cell(&pair, &params, &start, ImpedanceGains::default()).unwrap();
     cell.run(1.0);
     assert!((cell.tcp_pose().translation.vector - start.translation.vector).norm() < 0.05e-3);
     params.controller.rate_hz = 300.0;
-    let e = Cell::new(
-        &pair,
-        iiwa14().unwrap(),
-        &params,
-        None,
-        &start,
-        ImpedanceGains::default(),
-        1,
-    )
-    .err()
-    .unwrap()
-    .to_string();
+    let e = free_cell(&pair, &params, &start, ImpedanceGains::default())
+        .err()
+        .unwrap()
+        .to_string();
     assert!(e.contains("whole number of physics steps"), "{e}");
 }
