@@ -113,6 +113,8 @@ pub struct Cell {
     tau: DVector<f64>,
     /// Link-side joint torques of the last physics step, N m.
     tau_link: DVector<f64>,
+    /// Joint velocities after the last physics step, rad/s.
+    qd: Vec<f64>,
     /// An external wrench pushed onto the TCP (base frame, torque about the TCP), for diagnostics.
     pub push: Option<Wrench6>,
     /// Joint positions as the encoders read them at the last control cycle, rad.
@@ -224,6 +226,7 @@ impl Cell {
             dt_s: dt,
             tau: DVector::zeros(n),
             tau_link: DVector::zeros(n),
+            qd: vec![0.0; n],
             push: None,
             q_measured: q0.clone(),
             probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
@@ -258,17 +261,19 @@ impl Cell {
         if let Some(w) = self.push {
             self.apply_push(&w);
         }
-        let qd_before = self.arm.qd(&self.world);
         let speed = max_point_speed(&self.world, self.arm.last_body(), self.peg_reach_m);
         set_prediction_for_speed(&mut self.world, speed);
         self.world.step();
         self.arm.clear_torques(&mut self.world);
+        // Torques do not change velocities until the step, so the last step's velocities are
+        // the ones before this one.
         let qd = self.arm.qd(&self.world);
-        for i in 0..qd.len() {
-            let qdd = (qd[i] - qd_before[i]) / dt;
+        for (i, (v, v_before)) in qd.iter().zip(&self.qd).enumerate() {
+            let qdd = (v - v_before) / dt;
             self.tau_link[i] =
-                self.tau[i] - self.model.armature[i] * qdd - self.model.joints[i].damping * qd[i];
+                self.tau[i] - self.model.armature[i] * qdd - self.model.joints[i].damping * v;
         }
+        self.qd = qd;
         self.steps += 1;
     }
 
@@ -283,14 +288,13 @@ impl Cell {
     fn control_cycle(&mut self) {
         let period = 1.0 / self.controller.params.rate_hz;
         let q = self.arm.q(&self.world);
-        let qd = self.arm.qd(&self.world);
         let q_meas = self.sensors.read_q(&q);
         self.q_measured.clone_from(&q_meas);
         let tau_meas = self.sensors.read_torques(&self.tau_link, period);
         let gravity = Vector3::from(self.controller.params.gravity);
         let d = self.model.dynamics(&q_meas, &gravity);
-        self.sensors.estimate(&d, &qd, &tau_meas, period);
-        self.tau = self.controller.update(&d, &q_meas, &qd).tau;
+        self.sensors.estimate(&d, &self.qd, &tau_meas, period);
+        self.tau = self.controller.update(&d, &q_meas, &self.qd);
     }
 
     fn apply_push(&mut self, w: &Wrench6) {
@@ -332,11 +336,11 @@ impl Cell {
             })
         };
         let q = self.q();
-        let qd = self.arm.qd(&self.world);
-        if q.iter().chain(&qd).any(|v| !v.is_finite()) {
+        let qd = &self.qd;
+        if q.iter().chain(qd).any(|v| !v.is_finite()) {
             return fault("joint state is not finite (NaN or infinite)".into());
         }
-        for (j, v) in self.model.joints.iter().zip(&qd) {
+        for (j, v) in self.model.joints.iter().zip(qd) {
             if v.abs() > RUNAWAY_FACTOR * j.velocity_limit {
                 return fault(format!(
                     "runaway velocity: joint '{}' at {v:.3} rad/s, limit {} rad/s",

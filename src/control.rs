@@ -214,14 +214,6 @@ pub struct Controller {
     effort_limits: Vec<f64>,
 }
 
-/// One control cycle's output.
-pub struct Command {
-    /// Joint torques to apply, N m (gravity included, rate-limited, clamped).
-    pub tau: DVector<f64>,
-    /// Whether any joint hit its torque limit.
-    pub saturated: bool,
-}
-
 impl Controller {
     /// A controller of `model` starting in `mode`, with the null-space reference at `q0`.
     pub fn new(
@@ -263,16 +255,17 @@ impl Controller {
         Ok(())
     }
 
-    /// Moves the current mode's target (a Cartesian target in joint mode is an error).
+    /// Moves the Cartesian impedance target (ignored in joint-position mode, which has its own).
     pub fn set_cartesian_target(&mut self, target: Iso) {
         if let Mode::CartesianImpedance { target: t, .. } = &mut self.mode {
             *t = target;
         }
     }
 
-    /// One cycle: torques from the model evaluated at the measured joint positions `q` and the
-    /// joint velocities `qd` (rad, rad/s).
-    pub fn update(&mut self, d: &Dynamics, q: &[f64], qd: &[f64]) -> Command {
+    /// One cycle: the joint torques to apply (N m; gravity included, rate-limited, clamped to the
+    /// torque limits), from the model evaluated at the measured joint positions `q` and the joint
+    /// velocities `qd` (rad, rad/s).
+    pub fn update(&mut self, d: &Dynamics, q: &[f64], qd: &[f64]) -> DVector<f64> {
         let qd_v = DVector::from_row_slice(qd);
         let wanted = match &self.mode {
             Mode::CartesianImpedance { gains, target } => {
@@ -286,14 +279,10 @@ impl Controller {
         let delta = (wanted - &self.tau_task).map(|d| d.clamp(-step, step));
         self.tau_task += delta;
         let mut tau = &self.tau_task + &d.gravity;
-        let mut saturated = false;
         for (t, limit) in tau.iter_mut().zip(&self.effort_limits) {
-            if t.abs() > *limit {
-                *t = t.clamp(-limit, *limit);
-                saturated = true;
-            }
+            *t = t.clamp(-limit, *limit);
         }
-        Command { tau, saturated }
+        tau
     }
 }
 

@@ -194,8 +194,8 @@ impl Sensors {
     /// the joint velocities and the measured torques: updates `tau_ext`, `wrench` and `contact`.
     pub fn estimate(&mut self, d: &Dynamics, qd: &[f64], tau_measured: &DVector<f64>, dt_s: f64) {
         let p = &d.link_mass * DVector::from_row_slice(qd);
-        let p0 = self.p0.get_or_insert_with(|| p.clone()).clone();
-        self.tau_ext = (&p - p0 - &self.integral) * self.params.observer_gain_per_s;
+        let p0 = self.p0.get_or_insert_with(|| p.clone());
+        self.tau_ext = (&p - &*p0 - &self.integral) * self.params.observer_gain_per_s;
         self.integral += (tau_measured - &d.gravity + &self.tau_ext) * dt_s;
         let jac = &d.jacobian;
         let f = wrench_from_joint_torques(jac, &self.tau_ext, self.params.pinv_damping);

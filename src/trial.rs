@@ -311,38 +311,27 @@ pub fn run_trial(
     let offset = draw_offset(seed, &config.offset_range);
     let truth = nominal * offset.to_iso();
     let sampler = SamplerConfig::default();
-    let mut cell = match config.start {
-        // The paper's set-up: the peg partially inserted in the true hole, the robot commanded to
-        // the partial insertion it believes in (nominal), its compliance taking up the difference.
-        Start::Partial => {
-            let start = tcp_in_hole(&truth, config.start_depth_m);
-            let mut cell = Cell::new(
-                pair,
-                robot.clone(),
-                params,
-                Some(truth),
-                &start,
-                config.observe_gains.clone(),
-                seed,
-            )?;
-            cell.controller
-                .set_cartesian_target(tcp_in_hole(&nominal, config.start_depth_m));
-            cell
-        }
+    let start = match config.start {
+        // The paper's set-up: the peg partially inserted in the true hole (the robot is then
+        // commanded to the partial insertion it believes in, below).
+        Start::Partial => tcp_in_hole(&truth, config.start_depth_m),
         // Above the nominal mouth, clear of the highest hole the offsets allow.
-        Start::Above => {
-            let above = tcp_in_hole(&nominal, -(config.offset_range[2] + SEARCH_CLEARANCE_M));
-            Cell::new(
-                pair,
-                robot.clone(),
-                params,
-                Some(truth),
-                &above,
-                config.observe_gains.clone(),
-                seed,
-            )?
-        }
+        Start::Above => tcp_in_hole(&nominal, -(config.offset_range[2] + SEARCH_CLEARANCE_M)),
     };
+    let mut cell = Cell::new(
+        pair,
+        robot.clone(),
+        params,
+        Some(truth),
+        &start,
+        config.observe_gains.clone(),
+        seed,
+    )?;
+    if config.start == Start::Partial {
+        // Its compliance takes up the difference between the believed and the true hole.
+        cell.controller
+            .set_cartesian_target(tcp_in_hole(&nominal, config.start_depth_m));
+    }
     let mut run = Run {
         cell: &mut cell,
         trace,
@@ -354,6 +343,10 @@ pub fn run_trial(
         Start::Above => search(&mut run, &nominal, config, pair.clearance_m),
     };
     let Some(believed) = believed else {
+        let why = match run.fault {
+            Some(_) => "the physics faulted during the search",
+            None => "the search found no hole within its time limit",
+        };
         return Ok(stopped_result(
             pair,
             config,
@@ -361,7 +354,7 @@ pub fn run_trial(
             &offset,
             run.fault.clone(),
             started,
-            Some("search found no hole"),
+            Some(why),
         ));
     };
     run.phase = "observe";
@@ -369,7 +362,6 @@ pub fn run_trial(
 
     // Observation (IV-C) in the hole frame the robot believes in: phase 1 wide amplitudes while
     // descending to the target depth, phase 2 smaller ones there.
-    let frame = believed;
     let mut motion = sampler.motion.clone();
     // The sweep must reach past the hole wherever it really is: widen the amplitudes by the
     // uncertainty of the nominal pose.
@@ -396,7 +388,7 @@ pub fn run_trial(
         let n = noise.step(dt);
         run.cell
             .controller
-            .set_cartesian_target(frame * motion.target(t, pair.clearance_m, &n).to_iso());
+            .set_cartesian_target(believed * motion.target(t, pair.clearance_m, &n).to_iso());
         if !run.step() {
             break;
         }
@@ -458,7 +450,7 @@ pub fn run_trial(
                 times.align_s = run.cell.time_s() - t1;
                 aligned
             }
-            // Direct insertion, or no estimate: along the commanded peg axis (the nominal hole's z)
+            // Direct insertion, or no estimate: along the commanded peg axis (the believed hole's z)
             // from the present depth.
             None => {
                 let now = run.cell.measured_tcp_pose();
@@ -719,9 +711,9 @@ impl Run<'_> {
             crate::control::Mode::CartesianImpedance { target, .. } => *target,
             crate::control::Mode::JointPosition { .. } => self.cell.measured_tcp_pose(),
         };
-        let _ = self
-            .cell
+        self.cell
             .controller
-            .set_mode(crate::control::Mode::CartesianImpedance { gains, target });
+            .set_mode(crate::control::Mode::CartesianImpedance { gains, target })
+            .expect("gains checked by TrialConfig::validate");
     }
 }

@@ -27,7 +27,6 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 
 /// Everything the generator does, stored in the manifold's metadata.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -180,23 +179,17 @@ pub fn downsample(points: &[Pose6], metric: &PoseMetric, n: usize, seed: u64) ->
         return points.to_vec();
     }
     let scaled: Vec<[f64; 6]> = points.iter().map(|p| metric.scaled(p)).collect();
-    let cells_at = |size: f64| -> HashMap<[i64; 6], Vec<u32>> {
-        let mut cells: HashMap<[i64; 6], Vec<u32>> = HashMap::new();
-        for (i, p) in scaled.iter().enumerate() {
-            let key = p.map(|v| (v / size).floor() as i64);
-            cells.entry(key).or_default().push(i as u32);
-        }
-        cells
-    };
-    let count_at = |size: f64| -> usize {
-        let mut keys: Vec<[i64; 6]> = scaled
+    // Every pose with its cell at a cell size, sorted by cell (then pose): a cell is a run.
+    let keyed = |size: f64| -> Vec<([i64; 6], u32)> {
+        let mut keyed: Vec<([i64; 6], u32)> = scaled
             .iter()
-            .map(|p| p.map(|v| (v / size).floor() as i64))
+            .enumerate()
+            .map(|(i, p)| (p.map(|v| (v / size).floor() as i64), i as u32))
             .collect();
-        keys.sort_unstable();
-        keys.dedup();
-        keys.len()
+        keyed.sort_unstable();
+        keyed
     };
+    let count_at = |size: f64| keyed(size).chunk_by(|a, b| a.0 == b.0).count();
     // Bisection on the log of the cell size: the largest size that still gives n cells.
     let spread = scaled
         .iter()
@@ -210,12 +203,9 @@ pub fn downsample(points: &[Pose6], metric: &PoseMetric, n: usize, seed: u64) ->
             large = mid;
         }
     }
-    let cells = cells_at(small);
-    let mut keys: Vec<&[i64; 6]> = cells.keys().collect();
-    keys.sort_unstable();
-    let mut chosen: Vec<usize> = keys
-        .iter()
-        .map(|k| representative(&cells[*k], &scaled))
+    let mut chosen: Vec<usize> = keyed(small)
+        .chunk_by(|a, b| a.0 == b.0)
+        .map(|cell| representative(&cell.iter().map(|m| m.1).collect::<Vec<_>>(), &scaled))
         .collect();
     if chosen.len() > n {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
