@@ -265,7 +265,7 @@ pub fn neighbourhood_normal<'a>(
 
 /// Normals of every point of a cloud from its `k` nearest neighbours, computed in parallel; the
 /// result does not depend on the thread count. The neighbours come from a transient f32 tree with
-/// large leaves over the index's rotated frame (1.5 x faster for these all-points searches than
+/// 128-point leaves over the index's rotated frame (1.5 x faster for these all-points searches than
 /// the f64 query tree); f32 rounding can only swap neighbours tied to a few nanometres, which
 /// does not change a normal.
 pub fn cloud_normals(points: &[[f64; 6]], index: &ScaledIndex, k: usize) -> Vec<[f64; 6]> {
@@ -277,7 +277,7 @@ pub fn cloud_normals(points: &[[f64; 6]], index: &ScaledIndex, k: usize) -> Vec<
             std::array::from_fn(|i| r[i] as f32)
         })
         .collect();
-    let tree: ImmutableKdTree<f32, u32, 6, 256> = ImmutableKdTree::new_from_slice(&rotated);
+    let tree: ImmutableKdTree<f32, u32, 6, 128> = ImmutableKdTree::new_from_slice(&rotated);
     rotated
         .par_iter()
         .map(|q| {
