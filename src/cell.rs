@@ -126,7 +126,7 @@ pub struct Cell {
 }
 
 /// Why a simulation stopped being trustworthy.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SimFault {
     /// Simulated time of detection, s.
     pub time_s: f64,

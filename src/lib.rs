@@ -1,6 +1,8 @@
 //! pegtwin: a digital twin for robotic peg-in-hole assembly of complex parts by contact-manifold
 //! pose estimation (Negi et al.). See README.md for the pipeline and the commands.
 
+pub mod campaign;
+pub mod check;
 pub mod cell;
 pub mod cli;
 pub mod control;
@@ -11,8 +13,11 @@ pub mod manifold;
 pub mod pose;
 pub mod primitives;
 pub mod registration;
+pub mod report;
 pub mod robot;
+pub mod scenario;
 pub mod sensing;
 pub mod sim;
 pub mod trial;
+pub mod tune;
 pub mod validate;

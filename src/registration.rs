@@ -94,8 +94,9 @@ pub enum PaperUpdate {
     AsPrinted,
 }
 
-/// Parameters of a registration.
+/// Parameters of a registration (in files, fields not given keep their defaults).
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct RegistrationConfig {
     pub solver: Solver,
     /// Maximum iterations per restart (N).

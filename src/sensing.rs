@@ -29,8 +29,9 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
 /// Sensor and estimator parameters.
+/// In files, fields not given keep their defaults.
 #[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct SensorParams {
     /// Encoder resolution, rad (default 2 pi / 2^20, a 20-bit absolute encoder; assumption).
     pub encoder_resolution_rad: f64,

@@ -26,6 +26,8 @@ use std::time::Instant;
 
 /// Time the insertion target rests at its end before the trial is scored, s.
 const INSERT_SETTLE_S: f64 = 0.5;
+/// Sampling interval of the insertion force profile kept in a result, s.
+pub const FZ_PROFILE_DT_S: f64 = 0.05;
 
 /// How the trial inserts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -88,6 +90,12 @@ pub struct TrialConfig {
     pub insert_speed_m_per_s: f64,
     /// Time limit of the insertion, s.
     pub insert_limit_s: f64,
+    /// The insertion target goes this far past the believed floor, m (the compliance turns it into
+    /// the seating force; it also absorbs the estimate's error in z).
+    pub insert_overshoot_m: f64,
+    /// The insertion target stops advancing once the estimated |Fz| exceeds this, N (a force
+    /// break condition, as Sunrise's `ForceCondition`): the peg has jammed.
+    pub insert_stop_force_n: f64,
     /// Success when the final tip depth is within this of the floor, m (paper: 2 mm).
     pub success_eps_m: f64,
     pub registration: RegistrationConfig,
@@ -123,6 +131,8 @@ impl Default for TrialConfig {
             },
             insert_speed_m_per_s: 15e-3,
             insert_limit_s: 6.0,
+            insert_overshoot_m: 5e-3,
+            insert_stop_force_n: 40.0,
             success_eps_m: 2e-3,
             registration: RegistrationConfig::default(),
         }
@@ -148,6 +158,18 @@ impl TrialConfig {
                 self.offset_range
             )));
         }
+        if !(self.insert_overshoot_m >= 0.0 && self.insert_overshoot_m <= 0.05) {
+            return Err(Error::Input(format!(
+                "insert_overshoot_m {} m: expected 0 to 0.05 m",
+                self.insert_overshoot_m
+            )));
+        }
+        if !crate::control::is_positive(self.insert_stop_force_n) {
+            return Err(Error::Input(format!(
+                "insert_stop_force_n {} N: expected a positive force",
+                self.insert_stop_force_n
+            )));
+        }
         if !(self.phase1_fraction > 0.0 && self.phase1_fraction <= 1.0) {
             return Err(Error::Input(format!(
                 "phase1_fraction {}: expected a share in (0, 1]",
@@ -162,7 +184,7 @@ impl TrialConfig {
 }
 
 /// Per-axis errors of the estimate, mm and deg (estimate against truth, in the true hole frame).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct AxisErrors {
     pub x_mm: f64,
     pub y_mm: f64,
@@ -173,7 +195,7 @@ pub struct AxisErrors {
 }
 
 /// Simulated time per phase, s (rounded to the microsecond).
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct PhaseTimes {
     pub search_s: f64,
     pub observe_s: f64,
@@ -186,7 +208,7 @@ pub struct PhaseTimes {
 }
 
 /// The outcome of a trial.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TrialResult {
     pub seed: u64,
     pub geometry: String,
@@ -205,13 +227,15 @@ pub struct TrialResult {
     /// Estimated `base_T_hole` (m, rad), manifold method only.
     pub estimate: Option<[f64; 6]>,
     pub errors: Option<AxisErrors>,
-    /// Final tip depth below the true mouth, mm, and its distance to the floor.
-    pub final_depth_mm: f64,
+    /// Final tip depth below the true mouth, mm (none when the trial stopped before inserting).
+    pub final_depth_mm: Option<f64>,
     pub contact_observations: usize,
     pub observations_used: usize,
     /// Force along the peg axis during insertion (estimated), N: peak and mean of |Fz|.
     pub peak_fz_n: f64,
     pub mean_fz_n: f64,
+    /// |Fz| (estimated) during the insertion every `FZ_PROFILE_DT_S`, N (0.01 N resolution).
+    pub insert_fz_n: Vec<f64>,
     pub times: PhaseTimes,
     /// Wall time of the whole trial, s (not part of the deterministic result).
     #[serde(skip)]
@@ -435,7 +459,8 @@ pub fn run_trial(
             0.3,
         );
         times.retract_s = run.cell.time_s() - t0;
-        let axis_frame = match &estimate {
+        // The frame the insertion runs along, at the present depth, and that depth.
+        let (axis_frame, depth) = match &estimate {
             Some(e) => {
                 // In-plane alignment at constant depth under high stiffness.
                 let hole_est = e.to_iso();
@@ -448,28 +473,35 @@ pub fn run_trial(
                 run.move_linear(&now, &aligned, config.align_s);
                 run.hold(&aligned, 0.3);
                 times.align_s = run.cell.time_s() - t1;
-                aligned
+                (aligned, depth)
             }
             // Direct insertion, or no estimate: along the commanded peg axis (the believed hole's z)
             // from the present depth.
             None => {
                 let now = run.cell.measured_tcp_pose();
-                tcp_in_hole(&believed, -(believed.inverse() * now).translation.z)
+                let depth = -(believed.inverse() * now).translation.z;
+                (tcp_in_hole(&believed, depth), depth)
             }
         };
         // Compliant insertion along the frame's z down past the floor, within the time limit.
         run.phase = "insert";
         run.switch_gains(config.insert_gains.clone());
-        // A full cavity depth and more below where it starts: past the floor wherever the hole
-        // really is (the estimate's z is its weakest axis).
-        let travel = pair.cavity_depth_m + 5e-3;
+        // Down to the floor of the hole the robot believes in, and `insert_overshoot_m` past it
+        // (the estimate's z is its weakest axis, paper V-B); without an estimate, past it also by
+        // the z uncertainty of the nominal hole.
+        let uncertainty = if estimate.is_some() { 0.0 } else { config.offset_range[2] };
+        let travel = (pair.cavity_depth_m - depth + config.insert_overshoot_m + uncertainty).max(0.0);
         let t2 = run.cell.time_s();
-        // Until the target has travelled its way and settled for half a second, or the limit.
-        let duration =
-            (travel / config.insert_speed_m_per_s + INSERT_SETTLE_S).min(config.insert_limit_s);
-        let steps = (duration / dt).round() as usize;
-        for k in 0..steps {
-            let s = (k as f64 * dt * config.insert_speed_m_per_s).min(travel);
+        // Until the target has travelled its way or the force says stop, then settled for half
+        // a second; or the time limit.
+        let limit = (config.insert_limit_s / dt).round() as usize;
+        let settle = (INSERT_SETTLE_S / dt).round() as usize;
+        let mut s = 0.0;
+        let mut held_since = None;
+        for k in 0..limit {
+            if held_since.is_none() {
+                s = (k as f64 * dt * config.insert_speed_m_per_s).min(travel);
+            }
             run.cell
                 .controller
                 .set_cartesian_target(axis_frame * Iso::translation(0.0, 0.0, -s));
@@ -478,7 +510,14 @@ pub fn run_trial(
             }
             let w = run.cell.sensors.wrench;
             let z = run.cell.measured_tcp_pose().rotation * nalgebra::Vector3::z();
-            fz.push((w[0] * z.x + w[1] * z.y + w[2] * z.z).abs());
+            let f = (w[0] * z.x + w[1] * z.y + w[2] * z.z).abs();
+            fz.push(f);
+            if held_since.is_none() && (f > config.insert_stop_force_n || s >= travel) {
+                held_since = Some(k);
+            }
+            if held_since.is_some_and(|h| k >= h + settle) {
+                break;
+            }
         }
         times.insert_s = run.cell.time_s() - t2;
     }
@@ -509,7 +548,7 @@ pub fn run_trial(
         success,
         estimate: estimate.map(|e| e.0),
         errors,
-        final_depth_mm: final_depth * 1e3,
+        final_depth_mm: Some(final_depth * 1e3),
         contact_observations,
         observations_used: observations.len(),
         peak_fz_n: fz.iter().copied().fold(0.0, f64::max),
@@ -518,10 +557,20 @@ pub fn run_trial(
         } else {
             fz.iter().sum::<f64>() / fz.len() as f64
         },
+        insert_fz_n: fz_profile(&fz, dt),
         times,
         wall_s: started.elapsed().as_secs_f64(),
         ..base
     })
+}
+
+/// Every `FZ_PROFILE_DT_S` of a per-step |Fz| series, rounded to 0.01 N.
+fn fz_profile(fz: &[f64], dt: f64) -> Vec<f64> {
+    let stride = ((FZ_PROFILE_DT_S / dt).round() as usize).max(1);
+    fz.iter()
+        .step_by(stride)
+        .map(|f| (f * 100.0).round() / 100.0)
+        .collect()
 }
 
 fn to_mm_deg(p: &Pose6) -> [f64; 6] {
@@ -623,11 +672,12 @@ fn stopped_result(
         fault,
         estimate: None,
         errors: None,
-        final_depth_mm: f64::NAN,
+        final_depth_mm: None,
         contact_observations: 0,
         observations_used: 0,
         peak_fz_n: 0.0,
         mean_fz_n: 0.0,
+        insert_fz_n: Vec::new(),
         times: PhaseTimes::default(),
         wall_s: started.elapsed().as_secs_f64(),
     }

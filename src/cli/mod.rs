@@ -9,9 +9,11 @@ use crate::validate::{FreePegGains, ValidationReport, validate};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
+mod campaign;
 mod registration;
 mod robot;
 mod trial;
+pub use campaign::{CampaignArgs, CheckArgs, MergeArgs, TuneArgs};
 pub use registration::{ManifoldAction, RegisterArgs};
 pub use robot::RobotAction;
 pub use trial::TrialArgs;
@@ -53,6 +55,14 @@ pub enum Command {
     /// One online trial: a randomly offset hole, contact observation, registration, insertion
     /// (or the direct-insertion baseline).
     Trial(TrialArgs),
+    /// Every trial of a scenario in parallel: trials.jsonl, summary.json/csv, report.html.
+    Campaign(CampaignArgs),
+    /// Join the result folders of a campaign's shards into one.
+    Merge(MergeArgs),
+    /// The regression gate: hold a finished campaign to a baseline (exit 1 on a regression).
+    Check(CheckArgs),
+    /// Search the observation and insertion gains for the best success rate and lowest force.
+    Tune(TuneArgs),
 }
 
 #[derive(Subcommand)]
@@ -170,6 +180,10 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Register(args) => registration::register_command(args),
         Command::Robot { action } => robot::robot_command(action),
         Command::Trial(args) => trial::trial_command(args),
+        Command::Campaign(args) => campaign::campaign_command(args),
+        Command::Merge(args) => campaign::merge_command(args),
+        Command::Check(args) => campaign::check_command(args),
+        Command::Tune(args) => campaign::tune_command(args),
     }
 }
 

@@ -4,11 +4,11 @@ use crate::cell::CellParams;
 use crate::error::{Error, Result};
 use crate::geometry::{self, PartPair};
 use crate::manifold::Manifold;
-use crate::manifold::build::SamplerConfig;
-use crate::manifold::file;
+use crate::manifold::{cache, file};
+use crate::scenario::ManifoldSpec;
 use crate::trial::{Method, Start, TrialConfig, TrialResult, check_manifold, run_trial, trace_csv};
 use clap::Args;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct TrialArgs {
@@ -116,43 +116,17 @@ fn reference_manifold(
     }
     let dir = match &args.cache_dir {
         Some(d) => d.clone(),
-        None => default_cache_dir()?,
+        None => cache::default_dir()?,
     };
-    let path = dir.join(format!(
-        "{}-{}mm.manifold",
-        args.geometry, args.clearance_mm
-    ));
-    if path.is_file() {
-        let m = file::load(&path)?;
-        check_manifold(&m, pair, &path)?;
-        return Ok(m);
-    }
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| Error::file(&dir, format!("cannot create the cache folder: {e}")))?;
-    eprintln!(
-        "building the reference manifold of {} at {} mm into {} (once)",
-        args.geometry,
-        args.clearance_mm,
-        path.display()
-    );
-    let config = SamplerConfig::default();
-    let bar = indicatif::ProgressBar::new(config.episodes as u64);
-    let report =
-        crate::manifold::build::build(pair, robot, params, &config, 50_000, 1, &|| bar.inc(1))?;
-    bar.finish_and_clear();
-    file::save(&report.manifold, &path)?;
-    Ok(report.manifold)
-}
-
-fn default_cache_dir() -> Result<PathBuf> {
-    if let Some(x) = std::env::var_os("XDG_CACHE_HOME").filter(|v| !v.is_empty()) {
-        return Ok(Path::new(&x).join("pegtwin"));
-    }
-    std::env::var_os("HOME")
-        .map(|h| Path::new(&h).join(".cache").join("pegtwin"))
-        .ok_or_else(|| {
-            Error::Input("no cache folder: set --cache-dir, XDG_CACHE_HOME or HOME".into())
-        })
+    let spec = ManifoldSpec::default();
+    let sampler = spec.sampler();
+    let recipe = cache::Recipe {
+        sampler: &sampler,
+        points: spec.points,
+        seed: spec.seed,
+        params,
+    };
+    cache::load_or_build(pair, robot, &recipe, &dir, true)
 }
 
 fn print_result(r: &TrialResult) {
@@ -172,9 +146,12 @@ fn print_result(r: &TrialResult) {
         );
     }
     println!(
-        "outcome: {} (tip {:.2} mm below the mouth); {} contact observations, {} used; Fz peak {:.1} N, mean {:.1} N",
+        "outcome: {} ({}); {} contact observations, {} used; Fz peak {:.1} N, mean {:.1} N",
         r.outcome,
-        r.final_depth_mm,
+        match r.final_depth_mm {
+            Some(d) => format!("tip {d:.2} mm below the mouth"),
+            None => "not inserted".into(),
+        },
         r.contact_observations,
         r.observations_used,
         r.peak_fz_n,

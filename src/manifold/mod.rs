@@ -11,6 +11,7 @@
 //! Files: [`self::file`] (versioned binary with a checksum, and CSV). Test data: [`synthetic`].
 
 pub mod build;
+pub mod cache;
 pub mod file;
 pub mod synthetic;
 

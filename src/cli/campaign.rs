@@ -1,0 +1,235 @@
+//! `pegtwin campaign`, `merge`, `check` and `tune`.
+
+use crate::campaign::{self, CampaignOptions, RunOptions, Shard};
+use crate::check::{Baseline, compare, findings_table};
+use crate::error::{Error, Result};
+use crate::manifold::cache;
+use crate::report;
+use crate::scenario::Scenario;
+use crate::tune::{TuneOptions, tune};
+use clap::Args;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct CampaignArgs {
+    /// Scenario file (TOML).
+    pub scenario: PathBuf,
+    /// Results folder (created; must be new or empty unless --resume).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Run only shard I of N (0 <= I < N): trial number n belongs to shard n % N.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Complete a campaign that was interrupted in --out.
+    #[arg(long)]
+    pub resume: bool,
+    /// Folder of cached manifolds (default: $XDG_CACHE_HOME/pegtwin or ~/.cache/pegtwin).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct MergeArgs {
+    /// Shard result folders.
+    #[arg(required = true)]
+    pub dirs: Vec<PathBuf>,
+    /// Merged results folder (new or empty).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Args)]
+pub struct CheckArgs {
+    /// Results folder of a finished campaign.
+    pub dir: PathBuf,
+    /// Baseline to hold the run to (exit 1 when a cell regressed).
+    #[arg(long, required_unless_present = "write_baseline")]
+    pub baseline: Option<PathBuf>,
+    /// Write the run's summary as a baseline file instead.
+    #[arg(long, conflicts_with = "baseline")]
+    pub write_baseline: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct TuneArgs {
+    /// Scenario file (TOML): its cells and offsets; `trials` caps the trials per cell of the
+    /// last rung.
+    pub scenario: PathBuf,
+    /// Output folder for tune.csv and the plot (new or empty).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Candidates of the first rung (Latin hypercube).
+    #[arg(long, default_value_t = 27)]
+    pub candidates: usize,
+    /// Trials per cell at the first rung (times 3 per rung).
+    #[arg(long, default_value_t = 2)]
+    pub first_trials: usize,
+    /// Seed of the design.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Folder of cached manifolds.
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+}
+
+fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    if threads == Some(0) {
+        return Err(Error::Input("--threads 0: expected at least 1".into()));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+        .map_err(|e| Error::Input(format!("cannot start the worker threads: {e}")))
+}
+
+fn run_options(cache_dir: &Option<PathBuf>) -> Result<RunOptions> {
+    Ok(RunOptions {
+        cache_dir: match cache_dir {
+            Some(d) => d.clone(),
+            None => cache::default_dir()?,
+        },
+        progress: std::io::stderr().is_terminal(),
+    })
+}
+
+pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
+    let scenario = Scenario::load(&args.scenario)?;
+    let shard = match &args.shard {
+        Some(s) => Shard::parse(s)?,
+        None => Shard::WHOLE,
+    };
+    let run = run_options(&args.cache_dir)?;
+    let started = Instant::now();
+    let options = CampaignOptions {
+        shard,
+        resume: args.resume,
+    };
+    let outcome = pool(args.threads)?.install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
+    let summary = report::write_all(&args.out, &scenario, &outcome.records)?;
+    print!("{}", report::summary_table(&summary));
+    println!(
+        "{} trials ({} run now) in {:.1} s; results in {}",
+        outcome.records.len(),
+        outcome.ran,
+        started.elapsed().as_secs_f64(),
+        args.out.join("report.html").display()
+    );
+    Ok(0)
+}
+
+pub fn merge_command(args: MergeArgs) -> Result<i32> {
+    let (scenario, records) = campaign::merge(&args.dirs, &args.out)?;
+    let summary = report::write_all(&args.out, &scenario, &records)?;
+    print!("{}", report::summary_table(&summary));
+    println!(
+        "{} trials from {} shards; results in {}",
+        records.len(),
+        args.dirs.len(),
+        args.out.display()
+    );
+    Ok(0)
+}
+
+fn finished_summary(dir: &Path) -> Result<report::Summary> {
+    let c = campaign::read_campaign(dir)?;
+    if c.shard != Shard::WHOLE {
+        return Err(Error::file(
+            dir,
+            format!(
+                "is shard {}/{}: merge the shards first (pegtwin merge)",
+                c.shard.index, c.shard.count
+            ),
+        ));
+    }
+    let path = dir.join(campaign::TRIALS_FILE);
+    let records = campaign::read_records(&path, false)?;
+    let expected = campaign::all_trials(&c.scenario).len();
+    if records.len() != expected {
+        return Err(Error::file(
+            &path,
+            format!(
+                "holds {} of {expected} trials: the campaign is not finished (--resume it)",
+                records.len()
+            ),
+        ));
+    }
+    Ok(report::summarise(&c.scenario, &records))
+}
+
+pub fn check_command(args: CheckArgs) -> Result<i32> {
+    let summary = finished_summary(&args.dir)?;
+    if let Some(path) = &args.write_baseline {
+        let json = serde_json::to_vec_pretty(&Baseline::from_summary(&summary))
+            .expect("baseline serialises");
+        crate::manifold::file::write_atomically(path, &json)?;
+        println!("baseline of {} cells written to {}", summary.cells.len(), path.display());
+        return Ok(0);
+    }
+    let path = args.baseline.as_ref().expect("clap requires one of the two");
+    let baseline = Baseline::load(path)?;
+    if baseline.fingerprint != summary.fingerprint {
+        eprintln!(
+            "warning: the baseline was made from another scenario (fingerprint {} vs {}); comparing cell by cell",
+            baseline.fingerprint, summary.fingerprint
+        );
+    }
+    let findings = compare(&summary, &baseline);
+    print!("{}", findings_table(&findings));
+    let failed = findings.iter().any(|f| f.failed);
+    println!("{}", if failed { "check FAILED" } else { "check passed" });
+    Ok(i32::from(failed))
+}
+
+pub fn tune_command(args: TuneArgs) -> Result<i32> {
+    let scenario = Scenario::load(&args.scenario)?;
+    let run = run_options(&args.cache_dir)?;
+    if args.out.is_dir()
+        && std::fs::read_dir(&args.out)
+            .map_err(|e| Error::file(&args.out, format!("cannot list: {e}")))?
+            .next()
+            .is_some()
+    {
+        return Err(Error::file(&args.out, "is not empty: choose a new or empty --out"));
+    }
+    let options = TuneOptions {
+        candidates: args.candidates,
+        first_trials: args.first_trials,
+        seed: args.seed,
+    };
+    let cells = scenario.cells().len();
+    let evals = pool(args.threads)?.install(|| {
+        tune(&scenario, &options, &run, &|rung, n, trials| {
+            eprintln!("rung {rung}: {n} candidates x {} trials", trials * cells);
+        })
+    })?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| Error::file(&args.out, format!("cannot create: {e}")))?;
+    report::plots::write_tune(&args.out, &evals)?;
+    crate::manifold::file::write_atomically(
+        &args.out.join("tune.csv"),
+        &crate::tune::evaluations_csv(&evals),
+    )?;
+    let last_rung = evals.last().map_or(0, |e| e.rung);
+    let best = evals
+        .iter()
+        .find(|e| e.rung == last_rung)
+        .expect("at least one evaluation");
+    println!(
+        "best: candidate {} at rung {}: {}/{} successes, mean peak Fz {:.1} N\n\n{}",
+        best.candidate.id,
+        best.rung,
+        best.successes,
+        best.trials,
+        best.peak_fz_n,
+        best.candidate.snippet()
+    );
+    Ok(0)
+}

@@ -1,0 +1,320 @@
+//! What a campaign measured: per-cell statistics (`summary.json`, `summary.csv`, the printed
+//! table) and the HTML report with the paper's figures (`plots`).
+//!
+//! Statistics per cell (geometry x clearance x method x t_obs):
+//! - success rate with its 95 % Wilson score interval (good at small n and at 0 % / 100 %,
+//!   where the normal approximation collapses);
+//! - per axis, the mean absolute error of the estimate and the standard deviation of the
+//!   absolute error (the paper's "MAE" and "standard deviation in error"), over the trials that
+//!   produced an estimate (manifold method);
+//! - peak |Fz| during insertion, mean and standard deviation, for successes and failures apart;
+//! - mean simulated time per phase.
+
+pub mod plots;
+
+use crate::campaign::TrialRecord;
+use crate::error::Result;
+use crate::scenario::{Cell, Scenario};
+use crate::trial::Method;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// z of the two-sided 95 % normal quantile.
+const Z95: f64 = 1.959_963_984_540_054;
+
+/// The 95 % Wilson score interval of `k` successes in `n` trials.
+pub fn wilson_interval(k: usize, n: usize) -> [f64; 2] {
+    if n == 0 {
+        return [0.0, 1.0];
+    }
+    let (n, p) = (n as f64, k as f64 / n as f64);
+    let z2 = Z95 * Z95;
+    let centre = (p + z2 / (2.0 * n)) / (1.0 + z2 / n);
+    let half = Z95 / (1.0 + z2 / n) * (p * (1.0 - p) / n + z2 / (4.0 * n * n)).sqrt();
+    [(centre - half).max(0.0), (centre + half).min(1.0)]
+}
+
+/// Mean and (population) standard deviation of a sample; `None` when it is empty.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MeanStd {
+    pub mean: f64,
+    pub std: f64,
+    pub n: usize,
+}
+
+impl MeanStd {
+    pub fn of(values: &[f64]) -> Option<Self> {
+        if values.is_empty() {
+            return None;
+        }
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+        Some(MeanStd {
+            mean,
+            std: var.sqrt(),
+            n: values.len(),
+        })
+    }
+}
+
+/// Axis names of the error columns.
+pub const AXES: [&str; 6] = ["x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"];
+
+/// The statistics of one cell.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CellSummary {
+    #[serde(flatten)]
+    pub cell: Cell,
+    pub trials: usize,
+    pub successes: usize,
+    pub sim_faults: usize,
+    pub success_rate: f64,
+    /// 95 % Wilson interval of the success rate.
+    pub success_ci95: [f64; 2],
+    /// Mean absolute error per axis (x, y, z mm; roll, pitch, yaw deg); manifold method only.
+    pub mae: Option<[f64; 6]>,
+    /// Standard deviation of the absolute error per axis.
+    pub abs_error_std: Option<[f64; 6]>,
+    pub peak_fz_success_n: Option<MeanStd>,
+    pub peak_fz_failure_n: Option<MeanStd>,
+    /// Mean simulated time per phase, s: search, observe, retract, align, insert.
+    pub mean_phase_s: [f64; 5],
+}
+
+/// The whole summary (`summary.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Summary {
+    pub scenario: String,
+    pub fingerprint: String,
+    pub cells: Vec<CellSummary>,
+}
+
+/// Absolute errors of a record, x y z mm, roll pitch yaw deg.
+pub fn abs_errors(r: &TrialRecord) -> Option<[f64; 6]> {
+    r.result.errors.as_ref().map(|e| {
+        [e.x_mm, e.y_mm, e.z_mm, e.roll_deg, e.pitch_deg, e.yaw_deg].map(f64::abs)
+    })
+}
+
+/// Summarises records cell by cell, in the scenario's cell order.
+pub fn summarise(scenario: &Scenario, records: &[TrialRecord]) -> Summary {
+    let cells = scenario
+        .cells()
+        .into_iter()
+        .enumerate()
+        .map(|(i, cell)| {
+            let rs: Vec<&TrialRecord> = records.iter().filter(|r| r.cell == i).collect();
+            summarise_cell(cell, &rs)
+        })
+        .collect();
+    Summary {
+        scenario: scenario.name.clone(),
+        fingerprint: scenario.fingerprint(),
+        cells,
+    }
+}
+
+fn summarise_cell(cell: Cell, rs: &[&TrialRecord]) -> CellSummary {
+    let n = rs.len();
+    let successes = rs.iter().filter(|r| r.result.success).count();
+    let errors: Vec<[f64; 6]> = rs.iter().filter_map(|r| abs_errors(r)).collect();
+    let per_axis = |f: fn(&MeanStd) -> f64| -> Option<[f64; 6]> {
+        let cols: Vec<MeanStd> = (0..6)
+            .filter_map(|a| MeanStd::of(&errors.iter().map(|e| e[a]).collect::<Vec<_>>()))
+            .collect();
+        (cols.len() == 6).then(|| std::array::from_fn(|a| f(&cols[a])))
+    };
+    let peaks = |success: bool| {
+        let v: Vec<f64> = rs
+            .iter()
+            .filter(|r| r.result.success == success && r.result.fault.is_none())
+            .map(|r| r.result.peak_fz_n)
+            .collect();
+        MeanStd::of(&v)
+    };
+    let mean_of = |f: fn(&TrialRecord) -> f64| {
+        if n == 0 {
+            0.0
+        } else {
+            rs.iter().map(|r| f(r)).sum::<f64>() / n as f64
+        }
+    };
+    CellSummary {
+        trials: n,
+        successes,
+        sim_faults: rs.iter().filter(|r| r.result.fault.is_some()).count(),
+        success_rate: if n == 0 {
+            0.0
+        } else {
+            successes as f64 / n as f64
+        },
+        success_ci95: wilson_interval(successes, n),
+        mae: per_axis(|m| m.mean),
+        abs_error_std: per_axis(|m| m.std),
+        peak_fz_success_n: peaks(true),
+        peak_fz_failure_n: peaks(false),
+        mean_phase_s: [
+            mean_of(|r| r.result.times.search_s),
+            mean_of(|r| r.result.times.observe_s),
+            mean_of(|r| r.result.times.retract_s),
+            mean_of(|r| r.result.times.align_s),
+            mean_of(|r| r.result.times.insert_s),
+        ],
+        cell,
+    }
+}
+
+fn method_name(m: Method) -> &'static str {
+    match m {
+        Method::Manifold => "manifold",
+        Method::Direct => "direct",
+    }
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or(String::new(), |v| format!("{v:.digits$}"))
+}
+
+/// `summary.csv`: one row per cell.
+pub fn summary_csv(summary: &Summary) -> Vec<u8> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut header: Vec<String> = [
+        "geometry",
+        "clearance_mm",
+        "method",
+        "t_obs_s",
+        "trials",
+        "successes",
+        "sim_faults",
+        "success_rate",
+        "ci95_low",
+        "ci95_high",
+    ]
+    .map(String::from)
+    .to_vec();
+    header.extend(AXES.iter().map(|a| format!("mae_{a}")));
+    header.extend(AXES.iter().map(|a| format!("abs_error_std_{a}")));
+    header.extend(
+        [
+            "peak_fz_success_mean_n",
+            "peak_fz_success_std_n",
+            "peak_fz_failure_mean_n",
+            "peak_fz_failure_std_n",
+            "search_s",
+            "observe_s",
+            "retract_s",
+            "align_s",
+            "insert_s",
+        ]
+        .map(String::from),
+    );
+    w.write_record(&header).expect("in-memory csv");
+    for c in &summary.cells {
+        let mut row = vec![
+            c.cell.geometry.clone(),
+            c.cell.clearance_mm.to_string(),
+            method_name(c.cell.method).into(),
+            c.cell.t_obs_s.to_string(),
+            c.trials.to_string(),
+            c.successes.to_string(),
+            c.sim_faults.to_string(),
+            format!("{:.4}", c.success_rate),
+            format!("{:.4}", c.success_ci95[0]),
+            format!("{:.4}", c.success_ci95[1]),
+        ];
+        for v in [c.mae, c.abs_error_std] {
+            row.extend((0..6).map(|a| opt(v.map(|v| v[a]), 4)));
+        }
+        for m in [c.peak_fz_success_n, c.peak_fz_failure_n] {
+            row.push(opt(m.map(|m| m.mean), 3));
+            row.push(opt(m.map(|m| m.std), 3));
+        }
+        row.extend(c.mean_phase_s.iter().map(|t| format!("{t:.3}")));
+        w.write_record(&row).expect("in-memory csv");
+    }
+    w.into_inner().expect("in-memory csv")
+}
+
+/// The summary as a text table (what `campaign` prints).
+pub fn summary_table(summary: &Summary) -> String {
+    let mut out = format!(
+        "{:<10} {:>6} {:<8} {:>5} {:>9} {:>13} {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11}\n",
+        "geometry",
+        "c mm",
+        "method",
+        "t_obs",
+        "success",
+        "95% CI",
+        "x mm",
+        "y mm",
+        "z mm",
+        "r deg",
+        "p deg",
+        "yw deg",
+        "Fz ok N",
+        "Fz fail N"
+    );
+    for c in &summary.cells {
+        let mae = |a: usize| opt(c.mae.map(|m| m[a]), 2);
+        let fz = |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1}±{:.1}", m.mean, m.std));
+        out += &format!(
+            "{:<10} {:>6} {:<8} {:>5} {:>4}/{:<4} {:>5.0}-{:<5.0}% {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11}\n",
+            c.cell.geometry,
+            c.cell.clearance_mm,
+            method_name(c.cell.method),
+            c.cell.t_obs_s,
+            c.successes,
+            c.trials,
+            c.success_ci95[0] * 100.0,
+            c.success_ci95[1] * 100.0,
+            mae(0),
+            mae(1),
+            mae(2),
+            mae(3),
+            mae(4),
+            mae(5),
+            fz(c.peak_fz_success_n),
+            fz(c.peak_fz_failure_n),
+        );
+    }
+    out
+}
+
+/// Writes `summary.json`, `summary.csv` and the report (`report.html`, `figures/`) into `dir`.
+pub fn write_all(
+    dir: &Path,
+    scenario: &Scenario,
+    records: &[TrialRecord],
+) -> Result<Summary> {
+    let summary = summarise(scenario, records);
+    let write = crate::manifold::file::write_atomically;
+    write(
+        &dir.join("summary.json"),
+        &serde_json::to_vec_pretty(&summary).expect("summary serialises"),
+    )?;
+    write(&dir.join("summary.csv"), &summary_csv(&summary))?;
+    plots::write_report(dir, scenario, records, &summary)?;
+    Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wilson_matches_reference_values() {
+        // Reference: 8/10 -> [0.490, 0.943]; 0/10 -> [0, 0.278]; 10/10 -> [0.722, 1].
+        let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-3 && (a[1] - b[1]).abs() < 1e-3;
+        assert!(close(wilson_interval(8, 10), [0.4902, 0.9433]), "{:?}", wilson_interval(8, 10));
+        assert!(close(wilson_interval(0, 10), [0.0, 0.2775]));
+        assert!(close(wilson_interval(10, 10), [0.7225, 1.0]));
+    }
+
+    #[test]
+    fn mean_std_of_a_sample() {
+        let m = MeanStd::of(&[1.0, 3.0]).unwrap();
+        assert_eq!((m.mean, m.std, m.n), (2.0, 1.0, 2));
+        assert!(MeanStd::of(&[]).is_none());
+    }
+}

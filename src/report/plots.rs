@@ -1,0 +1,506 @@
+//! The report's figures (plotters, PNG and SVG) and `report.html`:
+//! - `fig4_success`: success rate per geometry, the manifold method at each t_obs beside the
+//!   direct baseline, with 95 % Wilson intervals (paper Fig. 4);
+//! - `fig5_errors`: success rate against the estimate's position error (max |x|, |y|) and
+//!   orientation error (max |roll|, |pitch|, |yaw|), with the number of trials per bin; bins past
+//!   2.5 deg are drawn red as in the paper (Fig. 5);
+//! - `fig6_fz`: |Fz| during insertion, mean +- 1 std, for successes and failures of each method
+//!   (Fig. 6).
+//!
+//! Text is drawn with the DejaVu Sans font shipped in `assets/fonts` (no system font lookup), so
+//! the figures look the same on every machine.
+
+use super::{AXES, Summary, abs_errors};
+use crate::campaign::TrialRecord;
+use crate::error::{Error, Result};
+use crate::scenario::Scenario;
+use crate::trial::{FZ_PROFILE_DT_S, Method};
+use crate::tune::Evaluation;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+
+const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+const SIZE: (u32, u32) = (960, 540);
+
+/// Position error bins, mm (upper edges; the last is open).
+const POSITION_BINS_MM: [f64; 6] = [0.1, 0.2, 0.3, 0.5, 1.0, f64::INFINITY];
+/// Orientation error bins, deg.
+const ORIENTATION_BINS_DEG: [f64; 7] = [0.5, 1.0, 1.5, 2.0, 2.5, 5.0, f64::INFINITY];
+/// The paper's critical orientation error, deg.
+const CRITICAL_DEG: f64 = 2.5;
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+            .map_err(|_| ())
+            .expect("the shipped font parses");
+    });
+}
+
+type DrawResult = std::result::Result<(), String>;
+
+fn err<E: std::fmt::Debug>(e: E) -> String {
+    format!("{e:?}")
+}
+
+/// Renders one figure to `figures/{name}.png` and `.svg`.
+fn render(
+    dir: &Path,
+    name: &str,
+    draw_png: impl Fn(DrawingArea<BitMapBackend, Shift>) -> DrawResult,
+    draw_svg: impl Fn(DrawingArea<SVGBackend, Shift>) -> DrawResult,
+) -> Result<()> {
+    let figures = dir.join("figures");
+    std::fs::create_dir_all(&figures)
+        .map_err(|e| Error::file(&figures, format!("cannot create: {e}")))?;
+    let png = figures.join(format!("{name}.png"));
+    let svg = figures.join(format!("{name}.svg"));
+    let fail = |path: &Path, e: String| Error::file(path, format!("cannot draw: {e}"));
+    draw_png(BitMapBackend::new(&png, SIZE).into_drawing_area()).map_err(|e| fail(&png, e))?;
+    draw_svg(SVGBackend::new(&svg, SIZE).into_drawing_area()).map_err(|e| fail(&svg, e))?;
+    Ok(())
+}
+
+/// A bar series of fig. 4: a label and, per geometry, (rate, ci low, ci high).
+struct BarSeries {
+    label: String,
+    values: Vec<Option<[f64; 3]>>,
+}
+
+fn success_series(summary: &Summary, geometries: &[String]) -> Vec<BarSeries> {
+    let mut groups: Vec<(Method, f64)> = Vec::new();
+    for c in &summary.cells {
+        let g = (c.cell.method, c.cell.t_obs_s);
+        if !groups.contains(&g) {
+            groups.push(g);
+        }
+    }
+    groups
+        .into_iter()
+        .map(|(method, t)| {
+            let label = match method {
+                Method::Manifold => format!("manifold, t_obs {t} s"),
+                Method::Direct => format!("direct, t_obs {t} s"),
+            };
+            let values = geometries
+                .iter()
+                .map(|g| {
+                    let cells: Vec<_> = summary
+                        .cells
+                        .iter()
+                        .filter(|c| &c.cell.geometry == g && c.cell.method == method && c.cell.t_obs_s == t)
+                        .collect();
+                    let (n, k) = cells
+                        .iter()
+                        .fold((0, 0), |(n, k), c| (n + c.trials, k + c.successes));
+                    (n > 0).then(|| {
+                        let ci = super::wilson_interval(k, n);
+                        [k as f64 / n as f64 * 100.0, ci[0] * 100.0, ci[1] * 100.0]
+                    })
+                })
+                .collect();
+            BarSeries { label, values }
+        })
+        .collect()
+}
+
+fn draw_success<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    geometries: &[String],
+    series: &[BarSeries],
+) -> DrawResult {
+    root.fill(&WHITE).map_err(err)?;
+    let n = geometries.len() as f64;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Success rate per geometry (95 % Wilson intervals)", ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(-0.5..n - 0.5, 0.0..105.0)
+        .map_err(err)?;
+    let names = geometries.to_vec();
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(geometries.len().max(2) * 2 + 1)
+        .x_label_formatter(&move |x| {
+            let i = x.round();
+            if (x - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < names.len() {
+                names[i as usize].clone()
+            } else {
+                String::new()
+            }
+        })
+        .y_desc("success rate (%)")
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(err)?;
+    let width = 0.8 / series.len().max(1) as f64;
+    for (s, bars) in series.iter().enumerate() {
+        let colour = Palette99::pick(s).to_rgba();
+        let offset = -0.4 + width * (s as f64 + 0.5);
+        chart
+            .draw_series(bars.values.iter().enumerate().filter_map(|(g, v)| {
+                v.map(|[rate, _, _]| {
+                    let x = g as f64 + offset;
+                    Rectangle::new(
+                        [(x - width * 0.45, 0.0), (x + width * 0.45, rate)],
+                        colour.filled(),
+                    )
+                })
+            }))
+            .map_err(err)?
+            .label(bars.label.clone())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], colour.filled()));
+        chart
+            .draw_series(bars.values.iter().enumerate().filter_map(|(g, v)| {
+                v.map(|[_, lo, hi]| {
+                    let x = g as f64 + offset;
+                    PathElement::new(vec![(x, lo), (x, hi)], BLACK.stroke_width(2))
+                })
+            }))
+            .map_err(err)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)
+}
+
+/// Success rate and count per bin of `value` (the largest of some absolute errors).
+fn binned(records: &[&TrialRecord], edges: &[f64], value: impl Fn(&[f64; 6]) -> f64) -> Vec<(usize, usize)> {
+    let mut bins = vec![(0, 0); edges.len()];
+    for r in records {
+        if let Some(e) = abs_errors(r) {
+            let v = value(&e);
+            let b = edges.iter().position(|&edge| v < edge).unwrap_or(edges.len() - 1);
+            bins[b].0 += 1;
+            bins[b].1 += usize::from(r.result.success);
+        }
+    }
+    bins
+}
+
+fn bin_labels(edges: &[f64]) -> Vec<String> {
+    let mut lo = 0.0;
+    edges
+        .iter()
+        .map(|&hi| {
+            let l = if hi.is_finite() {
+                format!("{lo}-{hi}")
+            } else {
+                format!(">{lo}")
+            };
+            lo = hi;
+            l
+        })
+        .collect()
+}
+
+fn draw_binned<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    axis: &str,
+    edges: &[f64],
+    bins: &[(usize, usize)],
+    critical: Option<f64>,
+) -> DrawResult {
+    let labels = bin_labels(edges);
+    let n = bins.len() as f64;
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(45)
+        .y_label_area_size(50)
+        .build_cartesian_2d(-0.5..n - 0.5, 0.0..115.0)
+        .map_err(err)?;
+    let l = labels.clone();
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(bins.len() * 2 + 1)
+        .x_label_formatter(&move |x| {
+            let i = x.round();
+            if (x - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < l.len() {
+                l[i as usize].clone()
+            } else {
+                String::new()
+            }
+        })
+        .x_desc(axis)
+        .y_desc("success rate (%)")
+        .label_style(("sans-serif", 13))
+        .draw()
+        .map_err(err)?;
+    let mut lo = 0.0;
+    for (i, (&(total, ok), &hi)) in bins.iter().zip(edges).enumerate() {
+        let colour = if critical.is_some_and(|c| lo >= c) {
+            RED.mix(0.7)
+        } else {
+            BLUE.mix(0.6)
+        };
+        lo = hi;
+        if total == 0 {
+            continue;
+        }
+        let rate = ok as f64 / total as f64 * 100.0;
+        let x = i as f64;
+        chart
+            .draw_series([Rectangle::new([(x - 0.38, 0.0), (x + 0.38, rate)], colour.filled())])
+            .map_err(err)?;
+        chart
+            .draw_series([Text::new(
+                format!("n={total}"),
+                (x - 0.25, rate + 6.0),
+                ("sans-serif", 13),
+            )])
+            .map_err(err)?;
+    }
+    Ok(())
+}
+
+fn draw_errors<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, records: &[&TrialRecord]) -> DrawResult {
+    root.fill(&WHITE).map_err(err)?;
+    let (left, right) = root.split_horizontally(SIZE.0 / 2);
+    let pos = binned(records, &POSITION_BINS_MM, |e| e[0].max(e[1]));
+    let rot = binned(records, &ORIENTATION_BINS_DEG, |e| e[3].max(e[4]).max(e[5]));
+    draw_binned(
+        &left,
+        "Success vs position error",
+        "max(|x|, |y|) error (mm)",
+        &POSITION_BINS_MM,
+        &pos,
+        None,
+    )?;
+    draw_binned(
+        &right,
+        "Success vs orientation error",
+        "max(|roll|, |pitch|, |yaw|) error (deg)",
+        &ORIENTATION_BINS_DEG,
+        &rot,
+        Some(CRITICAL_DEG),
+    )?;
+    root.present().map_err(err)
+}
+
+/// Mean and std of |Fz| per profile sample over a group of trials (samples that at least one
+/// trial reached).
+fn profile_band(records: &[&TrialRecord]) -> Vec<(f64, f64, f64)> {
+    let len = records.iter().map(|r| r.result.insert_fz_n.len()).max().unwrap_or(0);
+    (0..len)
+        .filter_map(|k| {
+            let v: Vec<f64> = records
+                .iter()
+                .filter_map(|r| r.result.insert_fz_n.get(k).copied())
+                .collect();
+            super::MeanStd::of(&v).map(|m| (k as f64 * FZ_PROFILE_DT_S, m.mean, m.std))
+        })
+        .collect()
+}
+
+fn draw_fz<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, records: &[&TrialRecord]) -> DrawResult {
+    root.fill(&WHITE).map_err(err)?;
+    let groups: Vec<(String, RGBAColor, Vec<(f64, f64, f64)>)> = [
+        (Method::Manifold, true, "manifold, success", GREEN),
+        (Method::Manifold, false, "manifold, failure", BLUE),
+        (Method::Direct, true, "direct, success", MAGENTA),
+        (Method::Direct, false, "direct, failure", RED),
+    ]
+    .into_iter()
+    .filter_map(|(method, success, label, colour)| {
+        let rs: Vec<&TrialRecord> = records
+            .iter()
+            .filter(|r| r.result.method == method && r.result.success == success)
+            .copied()
+            .collect();
+        let band = profile_band(&rs);
+        (!band.is_empty()).then(|| (format!("{label} (n={})", rs.len()), colour.to_rgba(), band))
+    })
+    .collect();
+    let t_max = groups
+        .iter()
+        .flat_map(|g| g.2.last().map(|p| p.0))
+        .fold(0.1, f64::max);
+    let f_max = groups
+        .iter()
+        .flat_map(|g| g.2.iter().map(|p| p.1 + p.2))
+        .fold(1.0, f64::max);
+    let mut chart = ChartBuilder::on(&root)
+        .caption("|Fz| during insertion, mean ± 1 std", ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0.0..t_max, 0.0..f_max * 1.1)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("time since the insertion started (s)")
+        .y_desc("|Fz| (N)")
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(err)?;
+    for (label, colour, band) in &groups {
+        let mut outline: Vec<(f64, f64)> = band.iter().map(|p| (p.0, p.1 + p.2)).collect();
+        outline.extend(band.iter().rev().map(|p| (p.0, (p.1 - p.2).max(0.0))));
+        chart
+            .draw_series([Polygon::new(outline, colour.mix(0.15).filled())])
+            .map_err(err)?;
+        let c = *colour;
+        chart
+            .draw_series(LineSeries::new(band.iter().map(|p| (p.0, p.1)), c.stroke_width(2)))
+            .map_err(err)?
+            .label(label.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)
+}
+
+fn draw_tune<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, evals: &[Evaluation]) -> DrawResult {
+    root.fill(&WHITE).map_err(err)?;
+    let f_max = evals
+        .iter()
+        .map(|e| e.peak_fz_n)
+        .filter(|f| f.is_finite())
+        .fold(1.0, f64::max);
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Gain search: success rate and peak |Fz| per candidate", ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0.0..f_max * 1.1, 0.0..105.0)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("mean peak |Fz| of the successes (N)")
+        .y_desc("success rate (%)")
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(err)?;
+    let rungs = evals.iter().map(|e| e.rung).max().map_or(0, |r| r + 1);
+    for rung in 0..rungs {
+        let colour = Palette99::pick(rung).to_rgba();
+        chart
+            .draw_series(
+                evals
+                    .iter()
+                    .filter(|e| e.rung == rung && e.peak_fz_n.is_finite())
+                    .map(|e| Circle::new((e.peak_fz_n, e.success_rate * 100.0), 5, colour.filled())),
+            )
+            .map_err(err)?
+            .label(format!("rung {rung}"))
+            .legend(move |(x, y)| Circle::new((x + 6, y), 5, colour.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)
+}
+
+/// Draws the gain search (`figures/tune.png` and `.svg`).
+pub fn write_tune(dir: &Path, evals: &[Evaluation]) -> Result<()> {
+    register_font();
+    render(dir, "tune", |a| draw_tune(a, evals), |a| draw_tune(a, evals))
+}
+
+/// Draws the three figures into `dir/figures` and writes `dir/report.html`.
+pub fn write_report(
+    dir: &Path,
+    scenario: &Scenario,
+    records: &[TrialRecord],
+    summary: &Summary,
+) -> Result<()> {
+    register_font();
+    let mut geometries: Vec<String> = Vec::new();
+    for c in &summary.cells {
+        if !geometries.contains(&c.cell.geometry) {
+            geometries.push(c.cell.geometry.clone());
+        }
+    }
+    let series = success_series(summary, &geometries);
+    render(
+        dir,
+        "fig4_success",
+        |a| draw_success(a, &geometries, &series),
+        |a| draw_success(a, &geometries, &series),
+    )?;
+    let manifold: Vec<&TrialRecord> = records
+        .iter()
+        .filter(|r| r.result.method == Method::Manifold)
+        .collect();
+    render(
+        dir,
+        "fig5_errors",
+        |a| draw_errors(a, &manifold),
+        |a| draw_errors(a, &manifold),
+    )?;
+    let all: Vec<&TrialRecord> = records.iter().collect();
+    render(dir, "fig6_fz", |a| draw_fz(a, &all), |a| draw_fz(a, &all))?;
+    crate::manifold::file::write_atomically(
+        &dir.join("report.html"),
+        html(scenario, summary).as_bytes(),
+    )
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+fn html(scenario: &Scenario, summary: &Summary) -> String {
+    let mut rows = String::new();
+    for c in &summary.cells {
+        let mae = |a: usize| c.mae.map_or(String::new(), |m| format!("{:.2}", m[a]));
+        let fz = |m: Option<super::MeanStd>| m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std));
+        rows += &format!(
+            "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td></tr>\n",
+            escape(&c.cell.geometry),
+            c.cell.clearance_mm,
+            c.cell.method,
+            c.cell.t_obs_s,
+            c.successes,
+            c.trials,
+            c.success_ci95[0] * 100.0,
+            c.success_ci95[1] * 100.0,
+            (0..6).map(|a| format!("<td>{}</td>", mae(a))).collect::<String>(),
+            fz(c.peak_fz_success_n),
+            fz(c.peak_fz_failure_n),
+        );
+    }
+    let axes: String = AXES.iter().map(|a| format!("<th>MAE {a}</th>")).collect();
+    let figure = |name: &str, caption: &str| {
+        format!(
+            "<figure><img src=\"figures/{name}.png\" alt=\"{caption}\" width=\"960\"><figcaption>{caption} (<a href=\"figures/{name}.svg\">SVG</a>)</figcaption></figure>\n"
+        )
+    };
+    format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th></tr>\n{rows}</table>\n{f4}{f5}{f6}</body></html>\n",
+        name = escape(&scenario.name),
+        fp = summary.fingerprint,
+        n = scenario.trials,
+        om = scenario.offset_mm,
+        od = scenario.offset_deg,
+        sm = scenario.success_mm,
+        f4 = figure("fig4_success", "Success rate per geometry, method vs direct (paper Fig. 4)"),
+        f5 = figure("fig5_errors", "Success rate against position and orientation error (paper Fig. 5)"),
+        f6 = figure("fig6_fz", "|Fz| profiles during insertion, success and failure, method vs direct (paper Fig. 6)"),
+    )
+}

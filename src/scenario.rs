@@ -1,0 +1,455 @@
+//! Scenario files: what a campaign runs, as TOML.
+//!
+//! A scenario names the cells of an experiment (geometry x clearance x method x t_obs), the
+//! trials per cell, the offset ranges, and overrides of the controller gains per phase, the sensor
+//! model, the physics and the registration. Every field not given keeps the value `pegtwin trial`
+//! uses; unknown fields are errors (with their line), and values are range-checked with errors
+//! that name the field. Units: fields typed by people carry them in their names (`clearances_mm`,
+//! `offset_deg`); gains and sensor parameters are SI as in the code (stiffness N/m on x, y, z and
+//! N m/rad on roll, pitch, yaw, in the TCP frame). The fields are listed in the README.
+
+use crate::cell::CellParams;
+use crate::control::ImpedanceGains;
+use crate::error::{Error, Result};
+use crate::geometry;
+use crate::manifold::build::SamplerConfig;
+use crate::registration::RegistrationConfig;
+use crate::sensing::SensorParams;
+use crate::trial::{Method, Start, TrialConfig};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// A scenario as written in its file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// A name for reports.
+    pub name: String,
+    /// Campaign seed; every trial's seed derives from it (see `campaign::trial_seed`).
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    /// Trials per cell.
+    pub trials: usize,
+    /// Built-in geometry names.
+    pub geometries: Vec<String>,
+    /// Diametral clearances, mm.
+    pub clearances_mm: Vec<f64>,
+    /// Observation times of the manifold method, s.
+    pub t_obs_s: Vec<f64>,
+    /// Methods to run: "manifold" and/or "direct".
+    pub methods: Vec<Method>,
+    /// Observation time of the direct baseline, s (the paper: 10 s).
+    #[serde(default = "default_direct_t_obs")]
+    pub direct_t_obs_s: f64,
+    /// How trials start: "partial" (the paper) or "above" (spiral search).
+    #[serde(default = "default_start")]
+    pub start: Start,
+    /// Half-range of the uniform hole position offset, mm (x, y, z).
+    #[serde(default = "default_offset")]
+    pub offset_mm: f64,
+    /// Half-range of the uniform hole orientation offset, deg (roll, pitch, yaw).
+    #[serde(default = "default_offset")]
+    pub offset_deg: f64,
+    /// Success threshold on the final depth, mm (the paper: 2 mm).
+    #[serde(default = "default_success")]
+    pub success_mm: f64,
+    #[serde(default)]
+    pub manifold: ManifoldSpec,
+    #[serde(default)]
+    pub gains: PhaseGains,
+    #[serde(default)]
+    pub sensors: Option<SensorParams>,
+    #[serde(default)]
+    pub physics: PhysicsOverride,
+    #[serde(default)]
+    pub registration: Option<RegistrationConfig>,
+}
+
+fn default_seed() -> u64 {
+    1
+}
+fn default_direct_t_obs() -> f64 {
+    10.0
+}
+fn default_start() -> Start {
+    Start::Partial
+}
+fn default_offset() -> f64 {
+    5.0
+}
+fn default_success() -> f64 {
+    2.0
+}
+
+/// How the reference manifolds are made (built once per geometry and clearance, then cached).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ManifoldSpec {
+    /// Points kept after downsampling.
+    pub points: usize,
+    /// Sampling episodes.
+    pub episodes: usize,
+    /// Simulated time per episode, s.
+    pub episode_s: f64,
+    /// Seed of the sampling.
+    pub seed: u64,
+}
+
+impl Default for ManifoldSpec {
+    fn default() -> Self {
+        let s = SamplerConfig::default();
+        ManifoldSpec {
+            points: 50_000,
+            episodes: s.episodes,
+            episode_s: s.episode_s,
+            seed: 1,
+        }
+    }
+}
+
+impl ManifoldSpec {
+    /// The sampler this spec asks for.
+    pub fn sampler(&self) -> SamplerConfig {
+        SamplerConfig {
+            episodes: self.episodes,
+            episode_s: self.episode_s,
+            ..SamplerConfig::default()
+        }
+    }
+}
+
+/// Gain overrides of the three online phases.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhaseGains {
+    #[serde(default)]
+    pub observe: GainsOverride,
+    #[serde(default)]
+    pub align: GainsOverride,
+    #[serde(default)]
+    pub insert: GainsOverride,
+}
+
+/// Fields of `ImpedanceGains` to replace; the rest keep the phase's default.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GainsOverride {
+    /// N/m on x, y, z; N m/rad on roll, pitch, yaw (TCP frame).
+    pub stiffness: Option<[f64; 6]>,
+    pub damping_ratio: Option<[f64; 6]>,
+    /// N m/rad.
+    pub null_stiffness: Option<f64>,
+    pub null_damping_ratio: Option<f64>,
+    /// N and N m per axis.
+    pub max_control_force: Option<[f64; 6]>,
+    /// Feed-forward wrench at the TCP, N and N m.
+    pub additional_force: Option<[f64; 6]>,
+}
+
+impl GainsOverride {
+    /// `base` with these fields replaced.
+    pub fn apply(&self, base: &ImpedanceGains) -> ImpedanceGains {
+        let mut g = base.clone();
+        if let Some(v) = self.stiffness {
+            g.stiffness = v;
+        }
+        if let Some(v) = self.damping_ratio {
+            g.damping_ratio = v;
+        }
+        if let Some(v) = self.null_stiffness {
+            g.null_stiffness = v;
+        }
+        if let Some(v) = self.null_damping_ratio {
+            g.null_damping_ratio = v;
+        }
+        if let Some(v) = self.max_control_force {
+            g.max_control_force = Some(v);
+        }
+        if let Some(v) = self.additional_force {
+            g.additional_force = v;
+        }
+        g
+    }
+}
+
+/// Physics parameters to replace.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhysicsOverride {
+    /// Physics step, s.
+    pub dt_s: Option<f64>,
+    /// Solver iterations (substeps) per step.
+    pub solver_iterations: Option<usize>,
+    /// Contact constraint natural frequency, Hz.
+    pub contact_frequency_hz: Option<f64>,
+    /// Coulomb friction between peg and hole.
+    pub friction: Option<f64>,
+}
+
+/// One cell of the experiment: the trials that share geometry, clearance, method and t_obs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Cell {
+    pub geometry: String,
+    pub clearance_mm: f64,
+    pub method: Method,
+    pub t_obs_s: f64,
+}
+
+impl Cell {
+    /// A short label, e.g. `cross 0.5 mm manifold 6 s`.
+    pub fn label(&self) -> String {
+        let m = match self.method {
+            Method::Manifold => "manifold",
+            Method::Direct => "direct",
+        };
+        format!(
+            "{} {} mm {m} {} s",
+            self.geometry, self.clearance_mm, self.t_obs_s
+        )
+    }
+}
+
+impl Scenario {
+    /// Reads and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+        Self::parse(&text).map_err(|e| match e {
+            Error::Input(msg) => Error::file(path, msg),
+            other => other,
+        })
+    }
+
+    /// Parses and validates scenario text.
+    pub fn parse(text: &str) -> Result<Self> {
+        let scenario: Scenario = toml::from_str(text).map_err(|e| {
+            let line = e
+                .span()
+                .map(|s| format!("line {}: ", text[..s.start].lines().count().max(1)))
+                .unwrap_or_default();
+            Error::Input(format!("{line}{}", e.message()))
+        })?;
+        scenario.validate()?;
+        Ok(scenario)
+    }
+
+    /// Checks every field, naming the first that is wrong.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |field: &str, v: String, expected: &str| {
+            Err(Error::Input(format!(
+                "{field} = {v}: expected {expected}"
+            )))
+        };
+        if self.trials == 0 {
+            return bad("trials", "0".into(), "at least 1");
+        }
+        if self.geometries.is_empty() {
+            return bad("geometries", "[]".into(), "at least one geometry");
+        }
+        for g in &self.geometries {
+            geometry::builtin_by_name(g)
+                .map_err(|e| Error::Input(format!("geometries: {e}")))?;
+        }
+        if self.clearances_mm.is_empty() {
+            return bad("clearances_mm", "[]".into(), "at least one clearance");
+        }
+        for &c in &self.clearances_mm {
+            geometry::check_clearance(c * 1e-3)
+                .map_err(|e| Error::Input(format!("clearances_mm: {e}")))?;
+        }
+        if self.methods.is_empty() {
+            return bad("methods", "[]".into(), "\"manifold\" and/or \"direct\"");
+        }
+        if self.methods.contains(&Method::Manifold) && self.t_obs_s.is_empty() {
+            return bad("t_obs_s", "[]".into(), "at least one observation time");
+        }
+        for &t in self.t_obs_s.iter().chain([&self.direct_t_obs_s]) {
+            if !(t > 0.0 && t <= 120.0) {
+                return bad("t_obs_s", t.to_string(), "times in (0, 120] s");
+            }
+        }
+        for (field, v, max) in [
+            ("offset_mm", self.offset_mm, 20.0),
+            ("offset_deg", self.offset_deg, 20.0),
+            ("success_mm", self.success_mm, 30.0),
+        ] {
+            if !(v >= 0.0 && v <= max) {
+                return bad(field, v.to_string(), &format!("a value in [0, {max}]"));
+            }
+        }
+        let m = &self.manifold;
+        if m.points < 1000 || m.episodes == 0 || !(m.episode_s > 0.0 && m.episode_s <= 600.0) {
+            return bad(
+                "manifold",
+                format!("{m:?}"),
+                "points >= 1000, episodes >= 1, episode_s in (0, 600]",
+            );
+        }
+        let d = TrialConfig::default();
+        for (phase, o, base) in [
+            ("observe", &self.gains.observe, &d.observe_gains),
+            ("align", &self.gains.align, &d.align_gains),
+            ("insert", &self.gains.insert, &d.insert_gains),
+        ] {
+            o.apply(base)
+                .validate()
+                .map_err(|e| Error::Input(format!("gains.{phase}: {e}")))?;
+        }
+        let params = self.cell_params();
+        params.sensors.validate().map_err(|e| Error::Input(format!("sensors: {e}")))?;
+        let p = &params.physics;
+        if !(p.dt_s > 0.0 && p.dt_s <= 2e-3) {
+            return bad("physics.dt_s", p.dt_s.to_string(), "a step in (0, 0.002] s");
+        }
+        if !(1..=50).contains(&p.solver_iterations) {
+            return bad(
+                "physics.solver_iterations",
+                p.solver_iterations.to_string(),
+                "1 to 50",
+            );
+        }
+        if !(p.contact_frequency_hz > 0.0 && p.contact_frequency_hz.is_finite()) {
+            return bad(
+                "physics.contact_frequency_hz",
+                p.contact_frequency_hz.to_string(),
+                "a positive frequency",
+            );
+        }
+        if !(p.friction >= 0.0 && p.friction <= 2.0) {
+            return bad("physics.friction", p.friction.to_string(), "a value in [0, 2]");
+        }
+        for cell in self.cells() {
+            self.trial_config(&cell)
+                .validate()
+                .map_err(|e| Error::Input(format!("{}: {e}", cell.label())))?;
+        }
+        Ok(())
+    }
+
+    /// The cells in their fixed order: geometry, clearance, then the manifold method at each
+    /// t_obs, then the direct baseline.
+    pub fn cells(&self) -> Vec<Cell> {
+        let mut cells = Vec::new();
+        for g in &self.geometries {
+            for &c in &self.clearances_mm {
+                for &method in &[Method::Manifold, Method::Direct] {
+                    if !self.methods.contains(&method) {
+                        continue;
+                    }
+                    let times = match method {
+                        Method::Manifold => self.t_obs_s.clone(),
+                        Method::Direct => vec![self.direct_t_obs_s],
+                    };
+                    for t in times {
+                        cells.push(Cell {
+                            geometry: g.clone(),
+                            clearance_mm: c,
+                            method,
+                            t_obs_s: t,
+                        });
+                    }
+                }
+            }
+        }
+        cells
+    }
+
+    /// The trial configuration of a cell.
+    pub fn trial_config(&self, cell: &Cell) -> TrialConfig {
+        let d = TrialConfig::default();
+        let (m, a) = (self.offset_mm * 1e-3, self.offset_deg.to_radians());
+        TrialConfig {
+            method: cell.method,
+            start: self.start,
+            t_obs_s: cell.t_obs_s,
+            offset_range: [m, m, m, a, a, a],
+            observe_gains: self.gains.observe.apply(&d.observe_gains),
+            align_gains: self.gains.align.apply(&d.align_gains),
+            insert_gains: self.gains.insert.apply(&d.insert_gains),
+            success_eps_m: self.success_mm * 1e-3,
+            registration: self.registration.clone().unwrap_or(d.registration.clone()),
+            ..d
+        }
+    }
+
+    /// The cell parameters (sensors, physics) of every trial and manifold.
+    pub fn cell_params(&self) -> CellParams {
+        let mut p = CellParams::default();
+        if let Some(s) = &self.sensors {
+            p.sensors = s.clone();
+        }
+        let o = &self.physics;
+        let ph = &mut p.physics;
+        ph.dt_s = o.dt_s.unwrap_or(ph.dt_s);
+        ph.solver_iterations = o.solver_iterations.unwrap_or(ph.solver_iterations);
+        ph.contact_frequency_hz = o.contact_frequency_hz.unwrap_or(ph.contact_frequency_hz);
+        ph.friction = o.friction.unwrap_or(ph.friction);
+        p
+    }
+
+    /// A fingerprint of everything that decides the trials' results (not the name): campaigns
+    /// and shards with the same fingerprint can be resumed and merged.
+    pub fn fingerprint(&self) -> String {
+        let mut s = self.clone();
+        s.name.clear();
+        let json = serde_json::to_string(&s).expect("scenario serialises");
+        format!("{:08x}", crc32fast::hash(json.as_bytes()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = r#"
+name = "t"
+trials = 2
+geometries = ["cross"]
+clearances_mm = [0.5]
+t_obs_s = [6.0, 10.0]
+methods = ["manifold", "direct"]
+"#;
+
+    #[test]
+    fn minimal_scenario_gives_manifold_then_direct_cells() {
+        let s = Scenario::parse(MINIMAL).unwrap();
+        let cells = s.cells();
+        assert_eq!(cells.len(), 3);
+        assert_eq!(cells[0].t_obs_s, 6.0);
+        assert_eq!(cells[2].method, Method::Direct);
+        assert_eq!(cells[2].t_obs_s, 10.0);
+    }
+
+    #[test]
+    fn gain_overrides_keep_the_phase_defaults_elsewhere() {
+        let text = format!("{MINIMAL}\n[gains.insert]\nstiffness = [800, 800, 2000, 40, 40, 40]\n");
+        let s = Scenario::parse(&text).unwrap();
+        let c = s.trial_config(&s.cells()[0]);
+        assert_eq!(c.insert_gains.stiffness[0], 800.0);
+        assert_eq!(c.observe_gains, TrialConfig::default().observe_gains);
+    }
+
+    #[test]
+    fn errors_name_the_line_or_the_field() {
+        let e = Scenario::parse(&format!("{MINIMAL}\nbogus = 1\n")).unwrap_err();
+        assert!(e.to_string().contains("line 9") && e.to_string().contains("bogus"), "{e}");
+        let e = Scenario::parse(&MINIMAL.replace("trials = 2", "trials = \"two\"")).unwrap_err();
+        assert!(e.to_string().contains("line 3"), "{e}");
+        let e = Scenario::parse(&MINIMAL.replace("[0.5]", "[-1]")).unwrap_err();
+        assert!(e.to_string().contains("clearances_mm"), "{e}");
+        let text = format!("{MINIMAL}\n[gains.insert]\nstiffness = [8, 800, 2000, 40, 40, 40]\n");
+        let e = Scenario::parse(&text).unwrap_err();
+        assert!(e.to_string().contains("gains.insert"), "{e}");
+        let e = Scenario::parse(&format!("{MINIMAL}\n[physics]\nfriction = -1\n")).unwrap_err();
+        assert!(e.to_string().contains("physics.friction"), "{e}");
+    }
+
+    #[test]
+    fn fingerprint_ignores_the_name_only() {
+        let a = Scenario::parse(MINIMAL).unwrap();
+        let b = Scenario::parse(&MINIMAL.replace("\"t\"", "\"u\"")).unwrap();
+        let c = Scenario::parse(&MINIMAL.replace("trials = 2", "trials = 3")).unwrap();
+        assert_eq!(a.fingerprint(), b.fingerprint());
+        assert_ne!(a.fingerprint(), c.fingerprint());
+    }
+}
