@@ -152,7 +152,11 @@ fn pair_key(cell: &Cell) -> (String, u64) {
 }
 
 /// Builds the pairs and loads (or builds and caches) the manifolds of `trials`.
-pub fn prepare(scenario: &Scenario, trials: &[TrialSpec], options: &RunOptions) -> Result<Prepared> {
+pub fn prepare(
+    scenario: &Scenario,
+    trials: &[TrialSpec],
+    options: &RunOptions,
+) -> Result<Prepared> {
     let robot = crate::robot::urdf::iiwa14()?;
     let cells = scenario.cells();
     let params = scenario.cell_params();
@@ -360,8 +364,12 @@ fn open_folder(out: &Path, described: &CampaignFile, resume: bool) -> Result<()>
 /// Reads `campaign.json` of a results folder.
 pub fn read_campaign(dir: &Path) -> Result<CampaignFile> {
     let path = dir.join(CAMPAIGN_FILE);
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| Error::file(&path, format!("cannot read (is this a campaign folder?): {e}")))?;
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        Error::file(
+            &path,
+            format!("cannot read (is this a campaign folder?): {e}"),
+        )
+    })?;
     serde_json::from_str(&text).map_err(|e| Error::file(&path, format!("not a campaign file: {e}")))
 }
 

@@ -63,12 +63,8 @@ impl Baseline {
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
-        serde_json::from_str(&text).map_err(|e| {
-            Error::file(
-                path,
-                format!("line {}: not a baseline file: {e}", e.line()),
-            )
-        })
+        serde_json::from_str(&text)
+            .map_err(|e| Error::file(path, format!("line {}: not a baseline file: {e}", e.line())))
     }
 }
 
@@ -111,7 +107,11 @@ pub fn compare(summary: &Summary, baseline: &Baseline) -> Vec<Finding> {
         });
         if let (Some(b), Some(n)) = (base.mae, now.mae) {
             for a in 0..6 {
-                let abs = if a < 3 { tol.mae_abs_mm } else { tol.mae_abs_deg };
+                let abs = if a < 3 {
+                    tol.mae_abs_mm
+                } else {
+                    tol.mae_abs_deg
+                };
                 let limit = b[a] * (1.0 + tol.mae_rel) + abs;
                 out.push(Finding {
                     cell: label.clone(),
@@ -190,7 +190,11 @@ mod tests {
             success_ci95: wilson_interval(successes, 10),
             mae: Some([mae_x, 0.1, 2.0, 0.5, 0.5, 0.1]),
             abs_error_std: Some([0.1; 6]),
-            peak_fz_success_n: Some(MeanStd { mean: fz, std: 1.0, n: successes }),
+            peak_fz_success_n: Some(MeanStd {
+                mean: fz,
+                std: 1.0,
+                n: successes,
+            }),
             peak_fz_failure_n: None,
             mean_phase_s: [0.0; 5],
         }

@@ -2,8 +2,8 @@
 //! pose estimation (Negi et al.). See README.md for the pipeline and the commands.
 
 pub mod campaign;
-pub mod check;
 pub mod cell;
+pub mod check;
 pub mod cli;
 pub mod control;
 pub mod diagnostics;

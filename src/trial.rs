@@ -489,8 +489,13 @@ pub fn run_trial(
         // Down to the floor of the hole the robot believes in, and `insert_overshoot_m` past it
         // (the estimate's z is its weakest axis, paper V-B); without an estimate, past it also by
         // the z uncertainty of the nominal hole.
-        let uncertainty = if estimate.is_some() { 0.0 } else { config.offset_range[2] };
-        let travel = (pair.cavity_depth_m - depth + config.insert_overshoot_m + uncertainty).max(0.0);
+        let uncertainty = if estimate.is_some() {
+            0.0
+        } else {
+            config.offset_range[2]
+        };
+        let travel =
+            (pair.cavity_depth_m - depth + config.insert_overshoot_m + uncertainty).max(0.0);
         let t2 = run.cell.time_s();
         // Until the target has travelled its way or the force says stop, then settled for half
         // a second; or the time limit.

@@ -21,6 +21,7 @@ use crate::scenario::Scenario;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Survivors of a rung: one in `ETA`.
@@ -147,7 +148,13 @@ impl Candidate {
         let o = self.observe_n_per_m;
         format!(
             "{}\n{}",
-            section("observe", o, 1.5 * o, self.observe_nm_per_rad, self.observe_damping),
+            section(
+                "observe",
+                o,
+                1.5 * o,
+                self.observe_nm_per_rad,
+                self.observe_damping
+            ),
             section(
                 "insert",
                 self.insert_n_per_m,
@@ -225,7 +232,7 @@ pub fn tune(
     for rung in 0.. {
         on_rung(rung, alive.len(), trials);
         let mut evals = alive
-            .iter()
+            .par_iter()
             .map(|c| evaluate(scenario, &prepared, c, rung, trials))
             .collect::<Result<Vec<_>>>()?;
         rank(&mut evals);

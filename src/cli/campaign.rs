@@ -112,7 +112,8 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
         shard,
         resume: args.resume,
     };
-    let outcome = pool(args.threads)?.install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
+    let outcome =
+        pool(args.threads)?.install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
     let summary = report::write_all(&args.out, &scenario, &outcome.records)?;
     print!("{}", report::summary_table(&summary));
     println!(
@@ -170,10 +171,17 @@ pub fn check_command(args: CheckArgs) -> Result<i32> {
         let json = serde_json::to_vec_pretty(&Baseline::from_summary(&summary))
             .expect("baseline serialises");
         crate::manifold::file::write_atomically(path, &json)?;
-        println!("baseline of {} cells written to {}", summary.cells.len(), path.display());
+        println!(
+            "baseline of {} cells written to {}",
+            summary.cells.len(),
+            path.display()
+        );
         return Ok(0);
     }
-    let path = args.baseline.as_ref().expect("clap requires one of the two");
+    let path = args
+        .baseline
+        .as_ref()
+        .expect("clap requires one of the two");
     let baseline = Baseline::load(path)?;
     if baseline.fingerprint != summary.fingerprint {
         eprintln!(
@@ -184,7 +192,14 @@ pub fn check_command(args: CheckArgs) -> Result<i32> {
     let findings = compare(&summary, &baseline);
     print!("{}", findings_table(&findings));
     let failed = findings.iter().any(|f| f.failed);
-    println!("{}", if failed { "check FAILED" } else { "check passed" });
+    println!(
+        "{}",
+        if failed {
+            "check FAILED"
+        } else {
+            "check passed"
+        }
+    );
     Ok(i32::from(failed))
 }
 
@@ -197,7 +212,10 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
             .next()
             .is_some()
     {
-        return Err(Error::file(&args.out, "is not empty: choose a new or empty --out"));
+        return Err(Error::file(
+            &args.out,
+            "is not empty: choose a new or empty --out",
+        ));
     }
     let options = TuneOptions {
         candidates: args.candidates,

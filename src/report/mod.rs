@@ -92,9 +92,10 @@ pub struct Summary {
 
 /// Absolute errors of a record, x y z mm, roll pitch yaw deg.
 pub fn abs_errors(r: &TrialRecord) -> Option<[f64; 6]> {
-    r.result.errors.as_ref().map(|e| {
-        [e.x_mm, e.y_mm, e.z_mm, e.roll_deg, e.pitch_deg, e.yaw_deg].map(f64::abs)
-    })
+    r.result
+        .errors
+        .as_ref()
+        .map(|e| [e.x_mm, e.y_mm, e.z_mm, e.roll_deg, e.pitch_deg, e.yaw_deg].map(f64::abs))
 }
 
 /// Summarises records cell by cell, in the scenario's cell order.
@@ -257,7 +258,8 @@ pub fn summary_table(summary: &Summary) -> String {
     );
     for c in &summary.cells {
         let mae = |a: usize| opt(c.mae.map(|m| m[a]), 2);
-        let fz = |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1}±{:.1}", m.mean, m.std));
+        let fz =
+            |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1}±{:.1}", m.mean, m.std));
         out += &format!(
             "{:<10} {:>6} {:<8} {:>5} {:>4}/{:<4} {:>5.0}-{:<5.0}% {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11}\n",
             c.cell.geometry,
@@ -282,11 +284,7 @@ pub fn summary_table(summary: &Summary) -> String {
 }
 
 /// Writes `summary.json`, `summary.csv` and the report (`report.html`, `figures/`) into `dir`.
-pub fn write_all(
-    dir: &Path,
-    scenario: &Scenario,
-    records: &[TrialRecord],
-) -> Result<Summary> {
+pub fn write_all(dir: &Path, scenario: &Scenario, records: &[TrialRecord]) -> Result<Summary> {
     let summary = summarise(scenario, records);
     let write = crate::manifold::file::write_atomically;
     write(
@@ -305,8 +303,13 @@ mod tests {
     #[test]
     fn wilson_matches_reference_values() {
         // Reference: 8/10 -> [0.490, 0.943]; 0/10 -> [0, 0.278]; 10/10 -> [0.722, 1].
-        let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-3 && (a[1] - b[1]).abs() < 1e-3;
-        assert!(close(wilson_interval(8, 10), [0.4902, 0.9433]), "{:?}", wilson_interval(8, 10));
+        let close =
+            |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-3 && (a[1] - b[1]).abs() < 1e-3;
+        assert!(
+            close(wilson_interval(8, 10), [0.4902, 0.9433]),
+            "{:?}",
+            wilson_interval(8, 10)
+        );
         assert!(close(wilson_interval(0, 10), [0.0, 0.2775]));
         assert!(close(wilson_interval(10, 10), [0.7225, 1.0]));
     }

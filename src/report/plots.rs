@@ -90,7 +90,9 @@ fn success_series(summary: &Summary, geometries: &[String]) -> Vec<BarSeries> {
                     let cells: Vec<_> = summary
                         .cells
                         .iter()
-                        .filter(|c| &c.cell.geometry == g && c.cell.method == method && c.cell.t_obs_s == t)
+                        .filter(|c| {
+                            &c.cell.geometry == g && c.cell.method == method && c.cell.t_obs_s == t
+                        })
                         .collect();
                     let (n, k) = cells
                         .iter()
@@ -114,7 +116,10 @@ fn draw_success<DB: DrawingBackend>(
     root.fill(&WHITE).map_err(err)?;
     let n = geometries.len() as f64;
     let mut chart = ChartBuilder::on(&root)
-        .caption("Success rate per geometry (95 % Wilson intervals)", ("sans-serif", 22))
+        .caption(
+            "Success rate per geometry (95 % Wilson intervals)",
+            ("sans-serif", 22),
+        )
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(55)
@@ -175,12 +180,19 @@ fn draw_success<DB: DrawingBackend>(
 }
 
 /// Success rate and count per bin of `value` (the largest of some absolute errors).
-fn binned(records: &[&TrialRecord], edges: &[f64], value: impl Fn(&[f64; 6]) -> f64) -> Vec<(usize, usize)> {
+fn binned(
+    records: &[&TrialRecord],
+    edges: &[f64],
+    value: impl Fn(&[f64; 6]) -> f64,
+) -> Vec<(usize, usize)> {
     let mut bins = vec![(0, 0); edges.len()];
     for r in records {
         if let Some(e) = abs_errors(r) {
             let v = value(&e);
-            let b = edges.iter().position(|&edge| v < edge).unwrap_or(edges.len() - 1);
+            let b = edges
+                .iter()
+                .position(|&edge| v < edge)
+                .unwrap_or(edges.len() - 1);
             bins[b].0 += 1;
             bins[b].1 += usize::from(r.result.success);
         }
@@ -253,7 +265,10 @@ fn draw_binned<DB: DrawingBackend>(
         let rate = ok as f64 / total as f64 * 100.0;
         let x = i as f64;
         chart
-            .draw_series([Rectangle::new([(x - 0.38, 0.0), (x + 0.38, rate)], colour.filled())])
+            .draw_series([Rectangle::new(
+                [(x - 0.38, 0.0), (x + 0.38, rate)],
+                colour.filled(),
+            )])
             .map_err(err)?;
         chart
             .draw_series([Text::new(
@@ -266,7 +281,10 @@ fn draw_binned<DB: DrawingBackend>(
     Ok(())
 }
 
-fn draw_errors<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, records: &[&TrialRecord]) -> DrawResult {
+fn draw_errors<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    records: &[&TrialRecord],
+) -> DrawResult {
     root.fill(&WHITE).map_err(err)?;
     let (left, right) = root.split_horizontally(SIZE.0 / 2);
     let pos = binned(records, &POSITION_BINS_MM, |e| e[0].max(e[1]));
@@ -290,10 +308,17 @@ fn draw_errors<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, records: &[&Tri
     root.present().map_err(err)
 }
 
+/// A labelled, coloured band of (time s, mean N, std N).
+type ProfileGroup = (String, RGBAColor, Vec<(f64, f64, f64)>);
+
 /// Mean and std of |Fz| per profile sample over a group of trials (samples that at least one
 /// trial reached).
 fn profile_band(records: &[&TrialRecord]) -> Vec<(f64, f64, f64)> {
-    let len = records.iter().map(|r| r.result.insert_fz_n.len()).max().unwrap_or(0);
+    let len = records
+        .iter()
+        .map(|r| r.result.insert_fz_n.len())
+        .max()
+        .unwrap_or(0);
     (0..len)
         .filter_map(|k| {
             let v: Vec<f64> = records
@@ -305,9 +330,12 @@ fn profile_band(records: &[&TrialRecord]) -> Vec<(f64, f64, f64)> {
         .collect()
 }
 
-fn draw_fz<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, records: &[&TrialRecord]) -> DrawResult {
+fn draw_fz<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    records: &[&TrialRecord],
+) -> DrawResult {
     root.fill(&WHITE).map_err(err)?;
-    let groups: Vec<(String, RGBAColor, Vec<(f64, f64, f64)>)> = [
+    let groups: Vec<ProfileGroup> = [
         (Method::Manifold, true, "manifold, success", GREEN),
         (Method::Manifold, false, "manifold, failure", BLUE),
         (Method::Direct, true, "direct, success", MAGENTA),
@@ -354,7 +382,10 @@ fn draw_fz<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, records: &[&TrialRe
             .map_err(err)?;
         let c = *colour;
         chart
-            .draw_series(LineSeries::new(band.iter().map(|p| (p.0, p.1)), c.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                band.iter().map(|p| (p.0, p.1)),
+                c.stroke_width(2),
+            ))
             .map_err(err)?
             .label(label.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2)));
@@ -378,7 +409,10 @@ fn draw_tune<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, evals: &[Evaluati
         .filter(|f| f.is_finite())
         .fold(1.0, f64::max);
     let mut chart = ChartBuilder::on(&root)
-        .caption("Gain search: success rate and peak |Fz| per candidate", ("sans-serif", 22))
+        .caption(
+            "Gain search: success rate and peak |Fz| per candidate",
+            ("sans-serif", 22),
+        )
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(55)
@@ -399,7 +433,9 @@ fn draw_tune<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, evals: &[Evaluati
                 evals
                     .iter()
                     .filter(|e| e.rung == rung && e.peak_fz_n.is_finite())
-                    .map(|e| Circle::new((e.peak_fz_n, e.success_rate * 100.0), 5, colour.filled())),
+                    .map(|e| {
+                        Circle::new((e.peak_fz_n, e.success_rate * 100.0), 5, colour.filled())
+                    }),
             )
             .map_err(err)?
             .label(format!("rung {rung}"))
@@ -419,7 +455,12 @@ fn draw_tune<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, evals: &[Evaluati
 /// Draws the gain search (`figures/tune.png` and `.svg`).
 pub fn write_tune(dir: &Path, evals: &[Evaluation]) -> Result<()> {
     register_font();
-    render(dir, "tune", |a| draw_tune(a, evals), |a| draw_tune(a, evals))
+    render(
+        dir,
+        "tune",
+        |a| draw_tune(a, evals),
+        |a| draw_tune(a, evals),
+    )
 }
 
 /// Draws the three figures into `dir/figures` and writes `dir/report.html`.
@@ -462,14 +503,18 @@ pub fn write_report(
 }
 
 fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 fn html(scenario: &Scenario, summary: &Summary) -> String {
     let mut rows = String::new();
     for c in &summary.cells {
         let mae = |a: usize| c.mae.map_or(String::new(), |m| format!("{:.2}", m[a]));
-        let fz = |m: Option<super::MeanStd>| m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std));
+        let fz = |m: Option<super::MeanStd>| {
+            m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std))
+        };
         rows += &format!(
             "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td></tr>\n",
             escape(&c.cell.geometry),
@@ -480,7 +525,9 @@ fn html(scenario: &Scenario, summary: &Summary) -> String {
             c.trials,
             c.success_ci95[0] * 100.0,
             c.success_ci95[1] * 100.0,
-            (0..6).map(|a| format!("<td>{}</td>", mae(a))).collect::<String>(),
+            (0..6)
+                .map(|a| format!("<td>{}</td>", mae(a)))
+                .collect::<String>(),
             fz(c.peak_fz_success_n),
             fz(c.peak_fz_failure_n),
         );
@@ -499,8 +546,17 @@ fn html(scenario: &Scenario, summary: &Summary) -> String {
         om = scenario.offset_mm,
         od = scenario.offset_deg,
         sm = scenario.success_mm,
-        f4 = figure("fig4_success", "Success rate per geometry, method vs direct (paper Fig. 4)"),
-        f5 = figure("fig5_errors", "Success rate against position and orientation error (paper Fig. 5)"),
-        f6 = figure("fig6_fz", "|Fz| profiles during insertion, success and failure, method vs direct (paper Fig. 6)"),
+        f4 = figure(
+            "fig4_success",
+            "Success rate per geometry, method vs direct (paper Fig. 4)"
+        ),
+        f5 = figure(
+            "fig5_errors",
+            "Success rate against position and orientation error (paper Fig. 5)"
+        ),
+        f6 = figure(
+            "fig6_fz",
+            "|Fz| profiles during insertion, success and failure, method vs direct (paper Fig. 6)"
+        ),
     )
 }

@@ -1,0 +1,302 @@
+//! Campaigns through the command line: identical trials.jsonl for 1 and 2 threads, for two
+//! merged shards and after a SIGKILL and --resume; the regression gate failing on a degraded
+//! estimator and passing on a rerun; the report's files; clear errors on bad input.
+
+mod common;
+use common::{pegtwin, stderr};
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+/// A tiny campaign: a small manifold, short observations, both methods.
+const SCENARIO: &str = r#"
+name = "test"
+seed = 7
+trials = 3
+geometries = ["cross"]
+clearances_mm = [0.5]
+t_obs_s = [3.0]
+methods = ["manifold", "direct"]
+direct_t_obs_s = 3.0
+
+[manifold]
+points = 3000
+episodes = 3
+episode_s = 5.0
+"#;
+
+/// The same with a crippled estimator: one paper-update iteration from one restart.
+const DEGRADED: &str = "\n[registration]\nsolver = \"paper\"\niterations = 1\nrestarts = 1\n";
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_str().unwrap().to_owned()
+}
+
+fn campaign(scenario: &str, out: &Path, cache: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "campaign",
+        scenario,
+        "--out",
+        out.to_str().unwrap(),
+        "--cache-dir",
+        cache.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    pegtwin(&args)
+}
+
+fn trials(dir: &Path) -> String {
+    std::fs::read_to_string(dir.join("trials.jsonl")).unwrap()
+}
+
+#[test]
+fn campaign_is_identical_across_threads_shards_and_a_kill() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (t, cache) = (tmp.path(), tmp.path().join("cache"));
+    let scenario = write(t, "s.toml", SCENARIO);
+
+    let one = t.join("one");
+    let o = campaign(&scenario, &one, &cache, &["--threads", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let reference = trials(&one);
+    assert_eq!(reference.lines().count(), 6);
+    for f in [
+        "summary.json",
+        "summary.csv",
+        "report.html",
+        "figures/fig4_success.png",
+        "figures/fig5_errors.svg",
+        "figures/fig6_fz.png",
+    ] {
+        assert!(one.join(f).is_file(), "{f} written");
+    }
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        table.contains("manifold") && table.contains("direct"),
+        "{table}"
+    );
+
+    let two = t.join("two");
+    let o = campaign(&scenario, &two, &cache, &["--threads", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(trials(&two), reference, "1 vs 2 threads");
+
+    for i in 0..2 {
+        let shard = format!("{i}/2");
+        let o = campaign(
+            &scenario,
+            &t.join(format!("shard{i}")),
+            &cache,
+            &["--shard", &shard],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let merged = t.join("merged");
+    let o = pegtwin(&[
+        "merge",
+        t.join("shard1").to_str().unwrap(),
+        t.join("shard0").to_str().unwrap(),
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(trials(&merged), reference, "merged shards");
+    let o = pegtwin(&[
+        "merge",
+        t.join("shard0").to_str().unwrap(),
+        "--out",
+        t.join("m2").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("missing shards 1/2"), "{}", stderr(&o));
+
+    // Kill a run once it has written a trial, cut its last line short, then resume.
+    let killed = t.join("killed");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pegtwin"))
+        .args([
+            "campaign",
+            &scenario,
+            "--out",
+            killed.to_str().unwrap(),
+            "--cache-dir",
+            cache.to_str().unwrap(),
+            "--threads",
+            "1",
+        ])
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while std::fs::read_to_string(killed.join("trials.jsonl")).map_or(0, |s| s.lines().count()) < 2
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no trial written"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on our own child's pid.
+    unsafe { libc::kill(child.id() as i32, libc::SIGKILL) };
+    child.wait().unwrap();
+    let partial = trials(&killed);
+    assert!(partial.lines().count() < 6, "killed before the end");
+    std::fs::write(
+        killed.join("trials.jsonl"),
+        format!("{partial}{{\"cell\":1,\"tri"),
+    )
+    .unwrap();
+    let o = campaign(&scenario, &killed, &cache, &[]);
+    assert_eq!(o.status.code(), Some(2), "refused without --resume");
+    assert!(stderr(&o).contains("--resume"), "{}", stderr(&o));
+    let o = campaign(&scenario, &killed, &cache, &["--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(trials(&killed), reference, "resumed after SIGKILL");
+
+    // The regression gate.
+    let baseline = t.join("baseline.json");
+    let o = pegtwin(&[
+        "check",
+        one.to_str().unwrap(),
+        "--write-baseline",
+        baseline.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = pegtwin(&[
+        "check",
+        two.to_str().unwrap(),
+        "--baseline",
+        baseline.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "rerun passes: {}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let degraded = write(t, "d.toml", &format!("{SCENARIO}{DEGRADED}"));
+    let bad = t.join("degraded");
+    let o = campaign(&degraded, &bad, &cache, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = pegtwin(&[
+        "check",
+        bad.to_str().unwrap(),
+        "--baseline",
+        baseline.to_str().unwrap(),
+    ]);
+    let report = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(1), "degraded run fails: {report}");
+    assert!(
+        report.contains("FAIL") && report.contains("mae_"),
+        "{report}"
+    );
+
+    // A folder holding another campaign is refused, even with --resume.
+    let o = campaign(&degraded, &one, &cache, &["--resume"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("different campaign"), "{}", stderr(&o));
+}
+
+#[test]
+fn bad_scenarios_and_folders_are_refused_with_exit_2() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let cache = t.join("cache");
+    let cases = [
+        ("name = \"x\"\ntrials = [\n", "line"),
+        (
+            &format!("{SCENARIO}\nwhatever = 3\n"),
+            "unknown field `whatever`",
+        ),
+        (&SCENARIO.replace("trials = 3", "trials = 0"), "trials"),
+        (&SCENARIO.replace("[0.5]", "[0.5, 9]"), "clearances_mm"),
+        (
+            &SCENARIO.replace("[\"cross\"]", "[\"torus\"]"),
+            "unknown geometry 'torus'",
+        ),
+        (
+            &format!("{SCENARIO}\n[gains.insert]\nstiffness = [9000, 1, 1, 1, 1, 1]\n"),
+            "gains.insert",
+        ),
+        (
+            &format!("{SCENARIO}\n[sensors]\ntorque_noise_nm = -1\n"),
+            "torque_noise_nm",
+        ),
+    ];
+    for (i, (text, expected)) in cases.iter().enumerate() {
+        let s = write(t, &format!("bad{i}.toml"), text);
+        let o = campaign(&s, &t.join(format!("out{i}")), &cache, &[]);
+        assert_eq!(o.status.code(), Some(2), "case {i}");
+        let e = stderr(&o);
+        assert!(
+            e.contains(expected) && e.contains(&format!("bad{i}.toml")),
+            "case {i}: {e}"
+        );
+        assert!(
+            !t.join(format!("out{i}")).exists(),
+            "case {i}: nothing written"
+        );
+    }
+    let e = stderr(&campaign(
+        &write(t, "bad0.toml", "name = \"x\"\ntrials = [\n"),
+        &t.join("o"),
+        &cache,
+        &[],
+    ));
+    assert!(e.contains("line 2"), "{e}");
+
+    let full = t.join("full");
+    std::fs::create_dir_all(&full).unwrap();
+    std::fs::write(full.join("notes.txt"), "mine").unwrap();
+    let o = campaign(&write(t, "s.toml", SCENARIO), &full, &cache, &[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("not empty"), "{}", stderr(&o));
+    let o = campaign(
+        &write(t, "s.toml", SCENARIO),
+        &t.join("x"),
+        &cache,
+        &["--shard", "2/2"],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let o = pegtwin(&["check", full.to_str().unwrap(), "--baseline", "nope.json"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("campaign.json"), "{}", stderr(&o));
+}
+
+#[test]
+fn tune_writes_its_table_and_prints_a_usable_snippet() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let scenario = write(t, "s.toml", &SCENARIO.replace("trials = 3", "trials = 2"));
+    let out = t.join("tune");
+    let o = pegtwin(&[
+        "tune",
+        &scenario,
+        "--out",
+        out.to_str().unwrap(),
+        "--candidates",
+        "3",
+        "--first-trials",
+        "1",
+        "--cache-dir",
+        t.join("cache").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = std::fs::read_to_string(out.join("tune.csv")).unwrap();
+    // Rung 0: 3 candidates x 1 trial per cell; rung 1: the best one x 2.
+    assert_eq!(table.lines().count(), 1 + 3 + 1, "{table}");
+    assert!(out.join("figures/tune.png").is_file());
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let snippet = &stdout[stdout.find("[gains.observe]").expect("snippet printed")..];
+    let s = write(t, "tuned.toml", &format!("{SCENARIO}\n{snippet}"));
+    let o = pegtwin(&[
+        "campaign",
+        &s,
+        "--out",
+        t.join("x").to_str().unwrap(),
+        "--shard",
+        "5/2",
+    ]);
+    // The snippet parses (the only error left is the shard).
+    assert!(stderr(&o).contains("--shard 5/2"), "{}", stderr(&o));
+}
