@@ -17,6 +17,7 @@ use crate::scenario::Scenario;
 use crate::trial::{FZ_PROFILE_DT_S, Method};
 use crate::tune::Evaluation;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -61,6 +62,62 @@ fn render(
     draw_png(BitMapBackend::new(&png, SIZE).into_drawing_area()).map_err(|e| fail(&png, e))?;
     draw_svg(SVGBackend::new(&svg, SIZE).into_drawing_area()).map_err(|e| fail(&svg, e))?;
     Ok(())
+}
+
+type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A chart with one category per integer x (labelled by `labels`) and a percentage y axis.
+fn category_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    title: &str,
+    title_size: u32,
+    labels: Vec<String>,
+    y_max: f64,
+    x_desc: Option<&str>,
+) -> std::result::Result<Chart<'a, DB>, String> {
+    let n = labels.len() as f64;
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", title_size))
+        .margin(10)
+        .x_label_area_size(45)
+        .y_label_area_size(55)
+        .build_cartesian_2d(-0.5..n - 0.5, 0.0..y_max)
+        .map_err(err)?;
+    let count = labels.len();
+    let name = move |x: &f64| {
+        let i = x.round();
+        if (x - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < labels.len() {
+            labels[i as usize].clone()
+        } else {
+            String::new()
+        }
+    };
+    let mut mesh = chart.configure_mesh();
+    mesh.disable_x_mesh()
+        .x_labels(count.max(2) * 2 + 1)
+        .x_label_formatter(&name)
+        .y_desc("success rate (%)")
+        .label_style(("sans-serif", 14));
+    if let Some(d) = x_desc {
+        mesh.x_desc(d);
+    }
+    mesh.draw().map_err(err)?;
+    Ok(chart)
+}
+
+/// The series legend, boxed, at `position`.
+fn draw_legend<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Chart<'a, DB>,
+    position: SeriesLabelPosition,
+) -> DrawResult {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err)
 }
 
 /// A bar series of fig. 4: a label and, per geometry, (rate, ci low, ci high).
@@ -114,34 +171,14 @@ fn draw_success<DB: DrawingBackend>(
     series: &[BarSeries],
 ) -> DrawResult {
     root.fill(&WHITE).map_err(err)?;
-    let n = geometries.len() as f64;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            "Success rate per geometry (95 % Wilson intervals)",
-            ("sans-serif", 22),
-        )
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(55)
-        .build_cartesian_2d(-0.5..n - 0.5, 0.0..105.0)
-        .map_err(err)?;
-    let names = geometries.to_vec();
-    chart
-        .configure_mesh()
-        .disable_x_mesh()
-        .x_labels(geometries.len().max(2) * 2 + 1)
-        .x_label_formatter(&move |x| {
-            let i = x.round();
-            if (x - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < names.len() {
-                names[i as usize].clone()
-            } else {
-                String::new()
-            }
-        })
-        .y_desc("success rate (%)")
-        .label_style(("sans-serif", 15))
-        .draw()
-        .map_err(err)?;
+    let mut chart = category_chart(
+        &root,
+        "Success rate per geometry (95 % Wilson intervals)",
+        22,
+        geometries.to_vec(),
+        105.0,
+        None,
+    )?;
     let width = 0.8 / series.len().max(1) as f64;
     for (s, bars) in series.iter().enumerate() {
         let colour = Palette99::pick(s).to_rgba();
@@ -168,14 +205,7 @@ fn draw_success<DB: DrawingBackend>(
             }))
             .map_err(err)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present().map_err(err)
 }
 
@@ -224,46 +254,29 @@ fn draw_binned<DB: DrawingBackend>(
     bins: &[(usize, usize)],
     critical: Option<f64>,
 ) -> DrawResult {
-    let labels = bin_labels(edges);
-    let n = bins.len() as f64;
-    let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 18))
-        .margin(10)
-        .x_label_area_size(45)
-        .y_label_area_size(50)
-        .build_cartesian_2d(-0.5..n - 0.5, 0.0..115.0)
-        .map_err(err)?;
-    let l = labels.clone();
-    chart
-        .configure_mesh()
-        .disable_x_mesh()
-        .x_labels(bins.len() * 2 + 1)
-        .x_label_formatter(&move |x| {
-            let i = x.round();
-            if (x - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < l.len() {
-                l[i as usize].clone()
-            } else {
-                String::new()
-            }
-        })
-        .x_desc(axis)
-        .y_desc("success rate (%)")
-        .label_style(("sans-serif", 13))
-        .draw()
-        .map_err(err)?;
+    let mut chart = category_chart(area, title, 18, bin_labels(edges), 115.0, Some(axis))?;
     let mut lo = 0.0;
     for (i, (&(total, ok), &hi)) in bins.iter().zip(edges).enumerate() {
-        let colour = if critical.is_some_and(|c| lo >= c) {
+        let past_critical = critical.is_some_and(|c| lo >= c);
+        let colour = if past_critical {
             RED.mix(0.7)
         } else {
             BLUE.mix(0.6)
         };
         lo = hi;
+        let x = i as f64;
+        if past_critical {
+            chart
+                .draw_series([Rectangle::new(
+                    [(x - 0.5, 0.0), (x + 0.5, 115.0)],
+                    RED.mix(0.08).filled(),
+                )])
+                .map_err(err)?;
+        }
         if total == 0 {
             continue;
         }
         let rate = ok as f64 / total as f64 * 100.0;
-        let x = i as f64;
         chart
             .draw_series([Rectangle::new(
                 [(x - 0.38, 0.0), (x + 0.38, rate)],
@@ -390,14 +403,7 @@ fn draw_fz<DB: DrawingBackend>(
             .label(label.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     root.present().map_err(err)
 }
 
@@ -441,14 +447,7 @@ fn draw_tune<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, evals: &[Evaluati
             .label(format!("rung {rung}"))
             .legend(move |(x, y)| Circle::new((x + 6, y), 5, colour.filled()));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present().map_err(err)
 }
 
