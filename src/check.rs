@@ -205,6 +205,7 @@ mod tests {
             scenario: "s".into(),
             fingerprint: "f".into(),
             cells: vec![c],
+            pooled: Vec::new(),
         }
     }
 

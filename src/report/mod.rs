@@ -88,6 +88,9 @@ pub struct Summary {
     pub scenario: String,
     pub fingerprint: String,
     pub cells: Vec<CellSummary>,
+    /// Per method and t_obs, every geometry and clearance pooled (the paper's averages):
+    /// geometry `all`, clearance the common one or 0 when several are pooled.
+    pub pooled: Vec<CellSummary>,
 }
 
 /// Absolute errors of a record, x y z mm, roll pitch yaw deg.
@@ -112,8 +115,44 @@ pub fn summarise(scenario: &Scenario, records: &[TrialRecord]) -> Summary {
     Summary {
         scenario: scenario.name.clone(),
         fingerprint: scenario.fingerprint(),
+        pooled: pooled(scenario, records),
         cells,
     }
+}
+
+/// One summary per (method, t_obs) over every geometry and clearance, when there are several.
+fn pooled(scenario: &Scenario, records: &[TrialRecord]) -> Vec<CellSummary> {
+    let cells = scenario.cells();
+    let pairs = scenario.geometries.len() * scenario.clearances_mm.len();
+    if pairs < 2 {
+        return Vec::new();
+    }
+    let clearance = match scenario.clearances_mm.as_slice() {
+        [c] => *c,
+        _ => 0.0,
+    };
+    let mut groups: Vec<(Method, f64)> = Vec::new();
+    for c in &cells {
+        if !groups.contains(&(c.method, c.t_obs_s)) {
+            groups.push((c.method, c.t_obs_s));
+        }
+    }
+    groups
+        .into_iter()
+        .map(|(method, t_obs_s)| {
+            let rs: Vec<&TrialRecord> = records
+                .iter()
+                .filter(|r| cells[r.cell].method == method && cells[r.cell].t_obs_s == t_obs_s)
+                .collect();
+            let cell = Cell {
+                geometry: "all".into(),
+                clearance_mm: clearance,
+                method,
+                t_obs_s,
+            };
+            summarise_cell(cell, &rs)
+        })
+        .collect()
 }
 
 fn summarise_cell(cell: Cell, rs: &[&TrialRecord]) -> CellSummary {
@@ -211,7 +250,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
         .map(String::from),
     );
     w.write_record(&header).expect("in-memory csv");
-    for c in &summary.cells {
+    for c in summary.cells.iter().chain(&summary.pooled) {
         let mut row = vec![
             c.cell.geometry.clone(),
             c.cell.clearance_mm.to_string(),
@@ -256,7 +295,7 @@ pub fn summary_table(summary: &Summary) -> String {
         "Fz ok N",
         "Fz fail N"
     );
-    for c in &summary.cells {
+    for c in summary.cells.iter().chain(&summary.pooled) {
         let mae = |a: usize| opt(c.mae.map(|m| m[a]), 2);
         let fz =
             |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1}±{:.1}", m.mean, m.std));

@@ -509,7 +509,7 @@ fn escape(s: &str) -> String {
 
 fn html(scenario: &Scenario, summary: &Summary) -> String {
     let mut rows = String::new();
-    for c in &summary.cells {
+    for c in summary.cells.iter().chain(&summary.pooled) {
         let mae = |a: usize| c.mae.map_or(String::new(), |m| format!("{:.2}", m[a]));
         let fz = |m: Option<super::MeanStd>| {
             m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std))
