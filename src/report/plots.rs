@@ -176,7 +176,8 @@ fn draw_success<DB: DrawingBackend>(
         "Success rate per geometry (95 % Wilson intervals)",
         22,
         geometries.to_vec(),
-        105.0,
+        // Headroom above 100 % for the legend.
+        135.0,
         None,
     )?;
     let width = 0.8 / series.len().max(1) as f64;
@@ -205,7 +206,7 @@ fn draw_success<DB: DrawingBackend>(
             }))
             .map_err(err)?;
     }
-    draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     root.present().map_err(err)
 }
 
