@@ -345,20 +345,26 @@ fn open_folder(out: &Path, described: &CampaignFile, resume: bool) -> Result<()>
         }
         return Ok(());
     }
-    if out.is_dir()
-        && std::fs::read_dir(out)
-            .map_err(|e| Error::file(out, format!("cannot list: {e}")))?
-            .next()
-            .is_some()
-    {
-        return Err(Error::file(
-            out,
-            "is not empty and holds no campaign.json: choose a new or empty --out",
-        ));
-    }
+    ensure_new_or_empty(out, "holds no campaign.json")?;
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, format!("cannot create: {e}")))?;
     let json = serde_json::to_vec_pretty(described).expect("campaign serialises");
     crate::manifold::file::write_atomically(&campaign_path, &json)
+}
+
+/// Refuses an output folder that exists and holds anything (`why` says what it lacks).
+pub fn ensure_new_or_empty(out: &Path, why: &str) -> Result<()> {
+    let occupied = out.is_dir()
+        && std::fs::read_dir(out)
+            .map_err(|e| Error::file(out, format!("cannot list: {e}")))?
+            .next()
+            .is_some();
+    if occupied {
+        return Err(Error::file(
+            out,
+            format!("is not empty and {why}: choose a new or empty --out"),
+        ));
+    }
+    Ok(())
 }
 
 /// Reads `campaign.json` of a results folder.

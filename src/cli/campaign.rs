@@ -206,17 +206,7 @@ pub fn check_command(args: CheckArgs) -> Result<i32> {
 pub fn tune_command(args: TuneArgs) -> Result<i32> {
     let scenario = Scenario::load(&args.scenario)?;
     let run = run_options(&args.cache_dir)?;
-    if args.out.is_dir()
-        && std::fs::read_dir(&args.out)
-            .map_err(|e| Error::file(&args.out, format!("cannot list: {e}")))?
-            .next()
-            .is_some()
-    {
-        return Err(Error::file(
-            &args.out,
-            "is not empty: choose a new or empty --out",
-        ));
-    }
+    campaign::ensure_new_or_empty(&args.out, "tune writes into new folders only")?;
     let options = TuneOptions {
         candidates: args.candidates,
         first_trials: args.first_trials,
