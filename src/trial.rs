@@ -115,7 +115,7 @@ impl Default for TrialConfig {
             phase1_scale: 1.0,
             phase2_scale: 0.8,
             observe_depth_m: 18e-3,
-            phase1_fraction: 0.4,
+            phase1_fraction: 0.6,
             observe_gains: ImpedanceGains {
                 stiffness: [1000.0, 1000.0, 1500.0, 5.0, 5.0, 5.0],
                 additional_force: [0.0, 0.0, -5.0, 0.0, 0.0, 0.0],
@@ -396,7 +396,7 @@ pub fn run_trial(
         start_depth_m: config.start_depth_m,
         end_depth_m: config.observe_depth_m,
         speed_m_per_s: (config.observe_depth_m - config.start_depth_m).max(0.0)
-            / (0.6 * config.t_obs_s),
+            / (config.phase1_fraction * config.t_obs_s),
     };
     let mut noise = PerturbationState::new(motion.perturbation.clone(), seed.wrapping_add(1));
     let dt = params.physics.dt_s;
