@@ -11,11 +11,9 @@
 //! closest points of the two edges. The last axis is cached in the manifold so that a separated
 //! pair costs two support scans.
 
+use super::compound::compound_manifolds;
 use rapier3d::parry::math::{Pose, Real, Vector};
-use rapier3d::parry::query::details::{
-    NormalConstraints, contact_manifolds_composite_shape_composite_shape,
-    contact_manifolds_composite_shape_shape,
-};
+use rapier3d::parry::query::details::{NormalConstraints, contact_manifolds_composite_shape_shape};
 use rapier3d::parry::query::{
     ClosestPoints, Contact, ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher,
     NonlinearRigidMotion, PersistentQueryDispatcher, QueryDispatcher, ShapeCastHit,
@@ -101,8 +99,8 @@ impl QueryDispatcher for ExactConvexDispatcher {
 
 impl<M, C> PersistentQueryDispatcher<M, C> for ExactConvexDispatcher
 where
-    M: Default + Clone + Send + Sync,
-    C: Default + Copy + Send + Sync,
+    M: Default + Clone + Send + Sync + 'static,
+    C: Default + Copy + Send + Sync + 'static,
     DefaultQueryDispatcher: PersistentQueryDispatcher<M, C>,
 {
     fn contact_manifolds(
@@ -116,9 +114,7 @@ where
     ) -> Result<(), Unsupported> {
         match (g1.as_composite_shape(), g2.as_composite_shape()) {
             (Some(c1), Some(c2)) => {
-                contact_manifolds_composite_shape_composite_shape(
-                    self, pos12, c1, c2, prediction, manifolds, workspace,
-                );
+                compound_manifolds(pos12, c1, c2, prediction, manifolds, workspace);
                 Ok(())
             }
             (Some(c1), None) => {
@@ -226,23 +222,29 @@ const COHERENCE_DIST_SQ: Real = 1e-12;
 /// manifold from flickering between a face and an edge of a resting face contact.
 const EDGE_TOLERANCE: Real = 1e-7;
 
-fn sat_manifold<M, C: Default + Copy>(
+/// The SAT manifold of two pieces (`pos12` places `b` in `a`'s frame). Returns `Some(gap)` when
+/// the pieces are apart by more than `prediction`: `gap` (metres) is a lower bound on their
+/// distance, the separation along the axis that proved it (the manifold is then empty).
+pub(crate) fn sat_manifold<M, C: Default + Copy>(
     pos12: &Pose,
     a: &ConvexPolyhedron,
     b: &ConvexPolyhedron,
     prediction: Real,
     manifold: &mut ContactManifold<M, C>,
-) {
+) -> Option<Real> {
     // A pair at rest keeps its contact points: only their separations are refreshed, while no
     // point has slid by more than a micrometre and the normal has turned by less than 0.1 deg.
     if manifold.try_update_contacts_eps(pos12, COHERENCE_COS, COHERENCE_DIST_SQ) {
-        return;
+        return None;
     }
     // The cached axis first: a pair that stays apart costs two support scans.
     let cached = manifold.local_n1;
-    if cached.length_squared() > 0.5 && separation(a, b, pos12, cached) > prediction {
-        manifold.clear();
-        return;
+    if cached.length_squared() > 0.5 {
+        let gap = separation(a, b, pos12, cached);
+        if gap > prediction {
+            manifold.clear();
+            return Some(gap);
+        }
     }
     let old_points = manifold.points.clone();
     manifold.clear();
@@ -267,7 +269,7 @@ fn sat_manifold<M, C: Default + Copy>(
         let s = pb.iter().fold(Real::MAX, |m, p| m.min(n.dot(*p))) - plane;
         if s > prediction {
             manifold.local_n1 = n;
-            return;
+            return Some(s);
         }
         if s > best.0 {
             best = (s, Axis::FaceA(i), n);
@@ -279,7 +281,7 @@ fn sat_manifold<M, C: Default + Copy>(
         let s = pa.iter().fold(Real::MAX, |acc, p| acc.min(m.dot(*p))) - plane;
         if s > prediction {
             manifold.local_n1 = -*m;
-            return;
+            return Some(s);
         }
         // Prefer A's faces when both are as good.
         if s > best.0 + EDGE_TOLERANCE * 0.1 {
@@ -289,9 +291,9 @@ fn sat_manifold<M, C: Default + Copy>(
     // Edge pairs that make a face of the Minkowski difference.
     let best = match edge_stage(a, b, pos12, &nb, &pb, prediction, best) {
         Ok(best) => best,
-        Err(separating) => {
+        Err((separating, gap)) => {
             manifold.local_n1 = separating;
-            return;
+            return Some(gap);
         }
     };
     let (_, axis, n1) = best;
@@ -303,10 +305,12 @@ fn sat_manifold<M, C: Default + Copy>(
         Axis::Edges(ia, ib) => edge_contact(pos12, a, ia, b, ib, n1, prediction, manifold),
     }
     manifold.match_contacts(&old_points);
+    None
 }
 
 /// The best axis after the face axes `best`, among edge pairs of A and B that make a face of the
-/// Minkowski difference; `Err(axis)` as soon as one separates the pieces by more than `prediction`.
+/// Minkowski difference; `Err((axis, gap))` as soon as one separates the pieces by more than
+/// `prediction`.
 /// `nb` and `pb` are B's face normals and points in A's frame.
 fn edge_stage(
     a: &ConvexPolyhedron,
@@ -316,25 +320,30 @@ fn edge_stage(
     pb: &[Vector],
     prediction: Real,
     mut best: (Real, Axis, Vector),
-) -> Result<(Real, Axis, Vector), Vector> {
+) -> Result<(Real, Axis, Vector), (Vector, Real)> {
     let pa = a.points();
     let centroid_a = pa.iter().copied().sum::<Vector>() / pa.len() as Real;
     let face_limit = best.0;
     SCRATCH.with_borrow_mut(|scratch| {
         let Scratch { arcs, crosses } = scratch;
-        arcs.fill(b, nb);
+        arcs.fill(b, nb, pos12, pb);
         crosses.clear();
         crosses.resize(arcs.len(), false);
-        for (ia, ea) in a.edges().iter().enumerate() {
+        for (ia, ea) in a
+            .edges()
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| is_real(e.faces))
+        {
             let (fa1, fa2) = (
                 a.faces()[ea.faces[0] as usize].normal,
                 a.faces()[ea.faces[1] as usize].normal,
             );
             let p_a = pa[ea.vertices[0] as usize];
             arcs.crossing(fa1, fa2, crosses);
-            for ib in (0..crosses.len()).filter(|&ib| crosses[ib]) {
-                let eb = &b.edges()[ib];
-                let axis = ea.dir.cross(pos12.rotation * eb.dir);
+            for j in (0..crosses.len()).filter(|&j| crosses[j]) {
+                let ib = arcs.edge[j];
+                let axis = ea.dir.cross(arcs.dir[j]);
                 let len = axis.length();
                 if len < 1e-5 {
                     continue;
@@ -343,9 +352,9 @@ fn edge_stage(
                 if axis.dot(p_a - centroid_a) < 0.0 {
                     axis = -axis;
                 }
-                let s = axis.dot(pb[eb.vertices[0] as usize] - p_a);
+                let s = axis.dot(arcs.start[j] - p_a);
                 if s > prediction {
-                    return Err(axis);
+                    return Err((axis, s));
                 }
                 if s > best.0.max(face_limit + EDGE_TOLERANCE) {
                     best = (s, Axis::Edges(ia, ib), axis);
@@ -367,19 +376,31 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
 }
 
-/// The edges of the second piece on the Gauss map, in the first piece's frame, stored by
+/// Whether an edge of a polyhedron is a real edge: parry keeps the diagonals of its triangulated
+/// faces in the edge list, with the same face on both sides (a point on the Gauss map, never a
+/// separating direction). A strip piece has 15 real edges among 24.
+fn is_real(faces: [u32; 2]) -> bool {
+    faces[0] != faces[1]
+}
+
+/// The real edges of the second piece on the Gauss map, in the first piece's frame, stored by
 /// coordinate so that the crossing test runs over all of them at once (vectorised): per edge,
-/// its two adjacent face normals negated (`n1`, `n2`) and their cross product.
+/// its two adjacent face normals negated (`n1`, `n2`) and their cross product, and its index.
 #[derive(Default)]
 struct GaussArcs {
+    edge: Vec<usize>,
+    /// Each edge's direction and first vertex in A's frame.
+    dir: Vec<Vector>,
+    start: Vec<Vector>,
     n1: [Vec<Real>; 3],
     n2: [Vec<Real>; 3],
     cross: [Vec<Real>; 3],
 }
 
 impl GaussArcs {
-    /// Refills with the arcs of `b`, whose face normals `nb` are already in A's frame.
-    fn fill(&mut self, b: &ConvexPolyhedron, nb: &[Vector]) {
+    /// Refills with the real edges of `b`: its face normals `nb` and points `pb` are already in
+    /// A's frame, `pos12` turns the edge directions.
+    fn fill(&mut self, b: &ConvexPolyhedron, nb: &[Vector], pos12: &Pose, pb: &[Vector]) {
         for v in self
             .n1
             .iter_mut()
@@ -388,7 +409,18 @@ impl GaussArcs {
         {
             v.clear();
         }
-        for e in b.edges() {
+        self.edge.clear();
+        self.dir.clear();
+        self.start.clear();
+        for (i, e) in b
+            .edges()
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| is_real(e.faces))
+        {
+            self.edge.push(i);
+            self.dir.push(pos12.rotation * e.dir);
+            self.start.push(pb[e.vertices[0] as usize]);
             let (c, d) = (-nb[e.faces[0] as usize], -nb[e.faces[1] as usize]);
             let x = d.cross(c);
             for k in 0..3 {

@@ -10,6 +10,7 @@
 //! chamfer pieces as "fast" at any speed and sweeps every piece: 54 % of the time of a `gear` step).
 
 pub mod arm;
+pub mod compound;
 pub mod contact;
 pub mod penetration;
 
