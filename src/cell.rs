@@ -134,7 +134,7 @@ pub struct SimFault {
 }
 
 /// Steps between exact penetration checks.
-const PENETRATION_CHECK_STEPS: u64 = 100;
+const PENETRATION_CHECK_STEPS: u64 = 250;
 /// A joint faster than this multiple of its speed limit is a runaway.
 const RUNAWAY_FACTOR: f64 = 3.0;
 
@@ -327,7 +327,7 @@ impl Cell {
 
     /// A reason to stop trusting the physics, if there is one: non-finite joint state, a joint
     /// running away (faster than three times its speed limit), or the peg inside the fixture by
-    /// more than the clearance (checked exactly every 100 steps).
+    /// more than the clearance (checked exactly every 250 steps).
     pub fn fault(&self) -> Option<SimFault> {
         let fault = |reason: String| {
             Some(SimFault {

@@ -7,7 +7,9 @@ use crate::manifold::file::{self, read_csv};
 use crate::manifold::synthetic::SyntheticPair;
 use crate::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
 use crate::pose::{Pose6, PoseMetric};
-use crate::registration::{Registration, RegistrationConfig, Solver, register};
+use crate::registration::{
+    DEFAULT_RESTARTS, DEFAULT_SIGMA_DEG, Registration, RegistrationConfig, Solver, register,
+};
 use clap::{Args, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
 
@@ -125,7 +127,7 @@ pub struct RegisterArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub init: String,
     /// Restarts (R), run in parallel.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = DEFAULT_RESTARTS)]
     pub restarts: usize,
     /// Maximum iterations per restart (N).
     #[arg(long, default_value_t = 50)]
@@ -140,7 +142,7 @@ pub struct RegisterArgs {
     #[arg(long, default_value_t = 1.0)]
     pub sigma_mm: f64,
     /// Standard deviation of the restarts' initial rotation, deg per axis.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = DEFAULT_SIGMA_DEG)]
     pub sigma_deg: f64,
     /// Stop a restart when its update is smaller than this, mm-equivalents.
     #[arg(long, default_value_t = 1e-3)]

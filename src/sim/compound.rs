@@ -64,6 +64,36 @@ impl Snapshot {
     }
 }
 
+/// Running sums of the per-step motion bounds since the workspace began: a point at `r` from
+/// body 2's origin has moved relative to body 1 by at most `t12 + chord r` in all (the triangle
+/// inequality over its path), and symmetrically. Comparing two readings costs a few flops where
+/// [`Snapshot::travel`] costs a quaternion product and three square roots.
+#[derive(Clone, Copy, Default)]
+struct Odometer {
+    /// Path lengths of body 2's origin in body 1's frame and of body 1's in body 2's, metres.
+    t12: f64,
+    t21: f64,
+    /// Sum of the per-step chords 2 sin(dtheta / 2), metres per metre of radius.
+    chord: f64,
+}
+
+impl Odometer {
+    fn advance(&mut self, from: &Snapshot, to: &Snapshot) {
+        self.t12 += f64::from((to.t12 - from.t12).length());
+        self.t21 += f64::from((to.t21 - from.t21).length());
+        self.chord += f64::from(2.0 * (to.rotation * from.rotation.inverse()).xyz().length());
+    }
+
+    /// Upper bound (metres) on the relative motion of a point at `r1` from body 1's origin, or
+    /// `r2` from body 2's, between the reading `then` and `self`.
+    fn travel_since(&self, then: &Odometer, r1: Real, r2: Real) -> f64 {
+        let chord = self.chord - then.chord;
+        let seen_from_1 = self.t12 - then.t12 + chord * f64::from(r2);
+        let seen_from_2 = self.t21 - then.t21 + chord * f64::from(r1);
+        seen_from_1.min(seen_from_2)
+    }
+}
+
 /// One candidate sub-pair and its persistent manifold.
 #[derive(Clone)]
 struct Slot<M, C> {
@@ -72,9 +102,10 @@ struct Slot<M, C> {
     /// Largest distance of a point of each piece from its body's origin, metres.
     r1: Real,
     r2: Real,
-    /// Proven gap between the pieces at `checked`, metres (0 when touching or unknown).
+    /// Proven gap between the pieces at the odometer reading `checked`, metres (0 when touching
+    /// or unknown).
     gap: Real,
-    checked: Snapshot,
+    checked: Odometer,
     manifold: ContactManifold<M, C>,
 }
 
@@ -85,6 +116,9 @@ struct Workspace<M, C> {
     slots: Vec<Slot<M, C>>,
     /// When the list was built and how far it reaches (metres).
     anchor: Option<(Snapshot, Real)>,
+    /// The relative pose at the last call, and the motion bounds summed over all calls.
+    last: Option<Snapshot>,
+    odometer: Odometer,
     /// Slots whose manifolds are with rapier, in the order handed over.
     lent: Vec<usize>,
     /// Per leaf of each body, its largest distance from the body's origin (NaN: not yet known).
@@ -97,6 +131,8 @@ impl<M, C> Default for Workspace<M, C> {
         Workspace {
             slots: Vec::new(),
             anchor: None,
+            last: None,
+            odometer: Odometer::default(),
             lent: Vec::new(),
             radii1: Vec::new(),
             radii2: Vec::new(),
@@ -148,17 +184,22 @@ pub fn compound_manifolds<M, C>(
     };
     ws.take_back(manifolds);
     let now = Snapshot::of(pos12);
+    if let Some(last) = ws.last {
+        ws.odometer.advance(&last, &now);
+    }
+    ws.last = Some(now);
     if ws.needs_rebuild(c1, c2, &now, prediction) {
         ws.rebuild(c1, c2, pos12, prediction, now);
     }
     let pos21 = pos12.inverse();
+    let odometer = ws.odometer;
     for slot in &mut ws.slots {
-        let bound = slot.checked.travel(&now, slot.r1, slot.r2);
-        if slot.gap - bound > prediction {
+        let bound = odometer.travel_since(&slot.checked, slot.r1, slot.r2);
+        if f64::from(slot.gap - prediction) > bound {
             continue;
         }
         slot.gap = piece_pair(&pos21, c1, c2, slot, prediction).unwrap_or(0.0);
-        slot.checked = now;
+        slot.checked = odometer;
     }
     ws.lend(manifolds);
 }
@@ -279,7 +320,7 @@ where
                     r1: leaf_radius(&mut self.radii1, c1, leaf1),
                     r2: leaf_radius(&mut self.radii2, c2, leaf2),
                     gap: 0.0,
-                    checked: now,
+                    checked: self.odometer,
                     manifold: new_manifold(c1, c2, leaf1, leaf2),
                 },
             };

@@ -248,14 +248,41 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
     }
     let old_points = manifold.points.clone();
     manifold.clear();
+    let best = SCRATCH.with_borrow_mut(|scratch| best_axis(pos12, a, b, prediction, scratch));
+    let (_, axis, n1) = match best {
+        Ok(best) => best,
+        Err((separating, gap)) => {
+            manifold.local_n1 = separating;
+            return Some(gap);
+        }
+    };
+    manifold.local_n1 = n1;
+    manifold.local_n2 = pos12.rotation.inverse() * -n1;
+    match axis {
+        Axis::FaceA(f) => face_contacts(pos12, a, f, b, prediction, false, manifold),
+        Axis::FaceB(f) => face_contacts(&pos12.inverse(), b, f, a, prediction, true, manifold),
+        Axis::Edges(ia, ib) => edge_contact(pos12, a, ia, b, ib, n1, prediction, manifold),
+    }
+    manifold.match_contacts(&old_points);
+    None
+}
 
+/// The separating-axis test proper: the axis of largest separation among the face normals of
+/// both pieces and the edge pairs that make a face of the Minkowski difference, or
+/// `Err((axis, gap))` as soon as one separates them by more than `prediction`.
+fn best_axis(
+    pos12: &Pose,
+    a: &ConvexPolyhedron,
+    b: &ConvexPolyhedron,
+    prediction: Real,
+    scratch: &mut Scratch,
+) -> Result<(Real, Axis, Vector), (Vector, Real)> {
     // B in A's frame, once.
-    let pb: Vec<Vector> = b.points().iter().map(|&p| *pos12 * p).collect();
-    let nb: Vec<Vector> = b
-        .faces()
-        .iter()
-        .map(|f| pos12.rotation * f.normal)
-        .collect();
+    let Scratch { pb, nb, .. } = scratch;
+    pb.clear();
+    pb.extend(b.points().iter().map(|&p| *pos12 * p));
+    nb.clear();
+    nb.extend(b.faces().iter().map(|f| pos12.rotation * f.normal));
     let pa = a.points();
     let vertex_of_face = |p: &ConvexPolyhedron, f: usize| {
         p.vertices_adj_to_face()[p.faces()[f].first_vertex_or_edge as usize] as usize
@@ -268,8 +295,7 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
         let plane = n.dot(pa[vertex_of_face(a, i)]);
         let s = pb.iter().fold(Real::MAX, |m, p| m.min(n.dot(*p))) - plane;
         if s > prediction {
-            manifold.local_n1 = n;
-            return Some(s);
+            return Err((n, s));
         }
         if s > best.0 {
             best = (s, Axis::FaceA(i), n);
@@ -280,8 +306,7 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
         let plane = m.dot(pb[vertex_of_face(b, i)]);
         let s = pa.iter().fold(Real::MAX, |acc, p| acc.min(m.dot(*p))) - plane;
         if s > prediction {
-            manifold.local_n1 = -*m;
-            return Some(s);
+            return Err((-*m, s));
         }
         // Prefer A's faces when both are as good.
         if s > best.0 + EDGE_TOLERANCE * 0.1 {
@@ -289,23 +314,7 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
         }
     }
     // Edge pairs that make a face of the Minkowski difference.
-    let best = match edge_stage(a, b, pos12, &nb, &pb, prediction, best) {
-        Ok(best) => best,
-        Err((separating, gap)) => {
-            manifold.local_n1 = separating;
-            return Some(gap);
-        }
-    };
-    let (_, axis, n1) = best;
-    manifold.local_n1 = n1;
-    manifold.local_n2 = pos12.rotation.inverse() * -n1;
-    match axis {
-        Axis::FaceA(f) => face_contacts(pos12, a, f, b, prediction, false, manifold),
-        Axis::FaceB(f) => face_contacts(&pos12.inverse(), b, f, a, prediction, true, manifold),
-        Axis::Edges(ia, ib) => edge_contact(pos12, a, ia, b, ib, n1, prediction, manifold),
-    }
-    manifold.match_contacts(&old_points);
-    None
+    edge_stage(a, b, pos12, prediction, best, scratch)
 }
 
 /// The best axis after the face axes `best`, among edge pairs of A and B that make a face of the
@@ -316,53 +325,55 @@ fn edge_stage(
     a: &ConvexPolyhedron,
     b: &ConvexPolyhedron,
     pos12: &Pose,
-    nb: &[Vector],
-    pb: &[Vector],
     prediction: Real,
     mut best: (Real, Axis, Vector),
+    scratch: &mut Scratch,
 ) -> Result<(Real, Axis, Vector), (Vector, Real)> {
     let pa = a.points();
     let centroid_a = pa.iter().copied().sum::<Vector>() / pa.len() as Real;
     let face_limit = best.0;
-    SCRATCH.with_borrow_mut(|scratch| {
-        let Scratch { arcs, crosses } = scratch;
-        arcs.fill(b, nb, pos12, pb);
-        crosses.clear();
-        crosses.resize(arcs.len(), false);
-        for (ia, ea) in a
-            .edges()
-            .iter()
-            .enumerate()
-            .filter(|(_, e)| is_real(e.faces))
-        {
-            let (fa1, fa2) = (
-                a.faces()[ea.faces[0] as usize].normal,
-                a.faces()[ea.faces[1] as usize].normal,
-            );
-            let p_a = pa[ea.vertices[0] as usize];
-            arcs.crossing(fa1, fa2, crosses);
-            for j in (0..crosses.len()).filter(|&j| crosses[j]) {
-                let ib = arcs.edge[j];
-                let axis = ea.dir.cross(arcs.dir[j]);
-                let len = axis.length();
-                if len < 1e-5 {
-                    continue;
-                }
-                let mut axis = axis / len;
-                if axis.dot(p_a - centroid_a) < 0.0 {
-                    axis = -axis;
-                }
-                let s = axis.dot(arcs.start[j] - p_a);
-                if s > prediction {
-                    return Err((axis, s));
-                }
-                if s > best.0.max(face_limit + EDGE_TOLERANCE) {
-                    best = (s, Axis::Edges(ia, ib), axis);
-                }
+    let Scratch {
+        arcs,
+        crosses,
+        pb,
+        nb,
+    } = scratch;
+    arcs.fill(b, nb, pos12, pb);
+    crosses.clear();
+    crosses.resize(arcs.len(), false);
+    for (ia, ea) in a
+        .edges()
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| is_real(e.faces))
+    {
+        let (fa1, fa2) = (
+            a.faces()[ea.faces[0] as usize].normal,
+            a.faces()[ea.faces[1] as usize].normal,
+        );
+        let p_a = pa[ea.vertices[0] as usize];
+        arcs.crossing(fa1, fa2, crosses);
+        for j in (0..crosses.len()).filter(|&j| crosses[j]) {
+            let ib = arcs.edge[j];
+            let axis = ea.dir.cross(arcs.dir[j]);
+            let len = axis.length();
+            if len < 1e-5 {
+                continue;
+            }
+            let mut axis = axis / len;
+            if axis.dot(p_a - centroid_a) < 0.0 {
+                axis = -axis;
+            }
+            let s = axis.dot(arcs.start[j] - p_a);
+            if s > prediction {
+                return Err((axis, s));
+            }
+            if s > best.0.max(face_limit + EDGE_TOLERANCE) {
+                best = (s, Axis::Edges(ia, ib), axis);
             }
         }
-        Ok(best)
-    })
+    }
+    Ok(best)
 }
 
 /// Buffers reused across calls (one set per thread), so that a full test allocates nothing.
@@ -370,6 +381,9 @@ fn edge_stage(
 struct Scratch {
     arcs: GaussArcs,
     crosses: Vec<bool>,
+    /// B's points and face normals in A's frame.
+    pb: Vec<Vector>,
+    nb: Vec<Vector>,
 }
 
 thread_local! {
