@@ -94,10 +94,9 @@ impl Builtin {
                 d("key_height", KEY_HEIGHT),
                 d("keyway_depth_in_shaft", KEY_SHAFT_DEPTH),
             ],
+            // The tooth count and pressure angle are not lengths: the description gives them.
             Builtin::Gear => vec![
-                d("teeth", GEAR_TEETH as f64),
                 d("module", GEAR_MODULE),
-                d("pressure_angle_deg", GEAR_PRESSURE_ANGLE_DEG),
                 d("outside_diameter", GEAR_MODULE * (GEAR_TEETH as f64 + 2.0)),
                 d("root_diameter", GEAR_MODULE * (GEAR_TEETH as f64 - 2.5)),
             ],

@@ -12,9 +12,10 @@
 //!    dynamics codes).
 //! 2. A sub-pair proven apart by a gap `g` (a separating axis of the SAT) is not tested again
 //!    until the relative motion since could have closed `g` down to the prediction distance. Any
-//!    point of body 2 at distance `r` from its origin moves relative to body 1 by at most
-//!    `|dt| + 2 sin(dtheta / 2) r` (and symmetrically), so a skipped pair is provably farther
-//!    apart than the prediction distance: no contact is lost.
+//!    point of body 2 at distance `r` from its origin moves relative to body 1 in a step by at
+//!    most `|dt| + 2 sin(dtheta / 2) r` (and symmetrically); these bounds are summed as the
+//!    bodies move ([`Odometer`]), so a skipped pair is provably farther apart than the
+//!    prediction distance: no contact is lost.
 //! 3. Only the manifolds that hold contact points are handed to rapier; they come back at the
 //!    next step with the solver's impulses (warm start) and return to their slot.
 //!
@@ -277,7 +278,7 @@ where
     /// Whether a sub-pair within `prediction` now could be missing from the list: the bodies
     /// may have moved relative to each other by more than the list's reach minus `prediction`.
     fn needs_rebuild(
-        &mut self,
+        &self,
         c1: &dyn CompositeShape,
         c2: &dyn CompositeShape,
         now: &Snapshot,
