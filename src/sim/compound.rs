@@ -46,11 +46,12 @@ struct Snapshot {
 }
 
 impl Snapshot {
-    fn of(pos12: &Pose) -> Self {
+    /// From the relative pose and its inverse.
+    fn of(pos12: &Pose, pos21: &Pose) -> Self {
         Snapshot {
             rotation: pos12.rotation,
             t12: pos12.translation,
-            t21: pos12.inverse().translation,
+            t21: pos21.translation,
         }
     }
 
@@ -184,7 +185,8 @@ pub fn compound_manifolds<M, C>(
         return;
     };
     ws.take_back(manifolds);
-    let now = Snapshot::of(pos12);
+    let pos21 = pos12.inverse();
+    let now = Snapshot::of(pos12, &pos21);
     if let Some(last) = ws.last {
         ws.odometer.advance(&last, &now);
     }
@@ -192,7 +194,6 @@ pub fn compound_manifolds<M, C>(
     if ws.needs_rebuild(c1, c2, &now, prediction) {
         ws.rebuild(c1, c2, pos12, prediction, now);
     }
-    let pos21 = pos12.inverse();
     let odometer = ws.odometer;
     for slot in &mut ws.slots {
         let bound = odometer.travel_since(&slot.checked, slot.r1, slot.r2);

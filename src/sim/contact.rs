@@ -246,16 +246,17 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
             return Some(gap);
         }
     }
-    let old_points = manifold.points.clone();
-    manifold.clear();
     let best = SCRATCH.with_borrow_mut(|scratch| best_axis(pos12, a, b, prediction, scratch));
     let (_, axis, n1) = match best {
         Ok(best) => best,
         Err((separating, gap)) => {
+            manifold.clear();
             manifold.local_n1 = separating;
             return Some(gap);
         }
     };
+    // The old points are kept only to carry their ids and impulses over to the new ones.
+    let old_points = std::mem::take(&mut manifold.points);
     manifold.local_n1 = n1;
     manifold.local_n2 = pos12.rotation.inverse() * -n1;
     match axis {
