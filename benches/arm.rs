@@ -4,11 +4,11 @@
 //! steps (1 ms each) per second on one core.
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
-use pegtwin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
-use pegtwin::control::ImpedanceGains;
-use pegtwin::geometry::{build_builtin, builtin_by_name};
-use pegtwin::robot::Iso;
-use pegtwin::robot::urdf::iiwa14;
+use pegtwin::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
+use pegtwin::twin::control::ImpedanceGains;
+use pegtwin::twin::geometry::{build_builtin, builtin_by_name};
+use pegtwin::twin::robot::Iso;
+use pegtwin::twin::robot::urdf::iiwa14;
 use std::hint::black_box;
 
 const STEPS: usize = 2000;

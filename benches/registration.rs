@@ -5,10 +5,10 @@
 //! threads, with each solver.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use pegtwin::manifold::synthetic::SyntheticPair;
-use pegtwin::manifold::{Manifold, ManifoldMeta, ScaledIndex, UNITS};
+use pegtwin::method::manifold::synthetic::SyntheticPair;
+use pegtwin::method::manifold::{Manifold, ManifoldMeta, ScaledIndex, UNITS};
+use pegtwin::method::register::{RegistrationConfig, Solver, register};
 use pegtwin::pose::{Pose6, PoseMetric};
-use pegtwin::registration::{RegistrationConfig, Solver, register};
 use std::hint::black_box;
 
 const MANIFOLD_POINTS: usize = 100_000;
@@ -20,7 +20,7 @@ fn meta(pair: &SyntheticPair) -> ManifoldMeta {
         clearance_m: Some(pair.clearance_m),
         units: UNITS.into(),
         metric: PoseMetric::default(),
-        normal_k: pegtwin::manifold::DEFAULT_NORMAL_K,
+        normal_k: pegtwin::method::manifold::DEFAULT_NORMAL_K,
         source: "benchmark".into(),
         seed: Some(1),
     }

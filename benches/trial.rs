@@ -4,18 +4,18 @@
 //! manifold is built once in the set-up with the default sampler (about 100 s on 2 cores).
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use pegtwin::cell::CellParams;
-use pegtwin::manifold::build::{SamplerConfig, build, episode_seed, run_episode};
-use pegtwin::trial::{TrialConfig, run_trial};
+use pegtwin::method::manifold::build::{SamplerConfig, build, episode_seed, run_episode};
+use pegtwin::method::trial::{TrialConfig, run_trial};
+use pegtwin::twin::cell::CellParams;
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
-    let pair = pegtwin::geometry::build_builtin(
-        pegtwin::geometry::builtin_by_name("cross").unwrap(),
+    let pair = pegtwin::twin::geometry::build_builtin(
+        pegtwin::twin::geometry::builtin_by_name("cross").unwrap(),
         0.5e-3,
     )
     .unwrap();
-    let robot = pegtwin::robot::urdf::iiwa14().unwrap();
+    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
     let params = CellParams::default();
     let sampler = SamplerConfig::default();
     let manifold = build(&pair, &robot, &params, &sampler, 50_000, 1, &|| ())

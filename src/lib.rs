@@ -2,22 +2,8 @@
 //! pose estimation (Negi et al.). See README.md for the pipeline and the commands.
 
 pub mod campaign;
-pub mod cell;
-pub mod check;
-pub mod cli;
-pub mod control;
-pub mod diagnostics;
 pub mod error;
-pub mod geometry;
-pub mod manifold;
+pub mod files;
+pub mod method;
 pub mod pose;
-pub mod primitives;
-pub mod registration;
-pub mod report;
-pub mod robot;
-pub mod scenario;
-pub mod sensing;
-pub mod sim;
-pub mod trial;
-pub mod tune;
-pub mod validate;
+pub mod twin;

@@ -1,9 +1,11 @@
 use clap::Parser;
 
+mod cli;
+
 fn main() {
     restore_default_sigpipe();
-    let cli = pegtwin::cli::Cli::parse();
-    match pegtwin::cli::run(cli) {
+    let cli = cli::Cli::parse();
+    match cli::run(cli) {
         Ok(code) => std::process::exit(code),
         Err(e) => {
             eprintln!("error: {e}");

@@ -1,10 +1,10 @@
 //! The arm as a rapier multibody: torque-driven, held by gravity compensation, consistent with
 //! the model's kinematics.
 
-use pegtwin::robot::urdf::{IIWA7_URDF, IIWA14_URDF, load};
-use pegtwin::robot::{GRAVITY_UPRIGHT, Iso, RobotModel};
-use pegtwin::sim::PhysicsParams;
-use pegtwin::sim::arm::Arm;
+use pegtwin::twin::physics::PhysicsParams;
+use pegtwin::twin::physics::arm::Arm;
+use pegtwin::twin::robot::urdf::{IIWA7_URDF, IIWA14_URDF, load};
+use pegtwin::twin::robot::{GRAVITY_UPRIGHT, Iso, RobotModel};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
 use std::path::Path;
 

@@ -1,13 +1,13 @@
 //! The robot cell end to end: static stiffness under impedance, the estimated wrench against the
 //! physics' contact force, insertion at 0.1 mm clearance, stalling when misaligned, mode switches.
 
-use pegtwin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
-use pegtwin::control::{ImpedanceGains, JointPositionGains, Mode};
-use pegtwin::diagnostics::{PushTest, measure_stiffness};
-use pegtwin::geometry::{PartPair, build_builtin, builtin_by_name};
-use pegtwin::robot::Iso;
-use pegtwin::robot::urdf::iiwa14;
-use pegtwin::sim::penetration::PenetrationProbe;
+use pegtwin::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
+use pegtwin::twin::control::{ImpedanceGains, JointPositionGains, Mode};
+use pegtwin::twin::diagnostics::{PushTest, measure_stiffness};
+use pegtwin::twin::geometry::{PartPair, build_builtin, builtin_by_name};
+use pegtwin::twin::physics::penetration::PenetrationProbe;
+use pegtwin::twin::robot::Iso;
+use pegtwin::twin::robot::urdf::iiwa14;
 
 /// The cell in free space (no fixture), the arm at rest at `start` under `gains`.
 fn free_cell(
@@ -181,7 +181,7 @@ fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
     };
     let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
     cell.run(2.0);
-    let e = pegtwin::control::tcp_error(&cell.tcp_pose(), &start);
+    let e = pegtwin::twin::control::tcp_error(&cell.tcp_pose(), &start);
     assert!((e[2] - 0.005).abs() < 0.05e-3, "moved {e}");
     // A 6 N push along x with the spring force capped at 2 N: the TCP keeps yielding.
     let gains = ImpedanceGains {
@@ -199,9 +199,9 @@ fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
         0.0,
     ));
     cell.run(0.5);
-    let early = pegtwin::control::tcp_error(&cell.tcp_pose(), &start)[0];
+    let early = pegtwin::twin::control::tcp_error(&cell.tcp_pose(), &start)[0];
     cell.run(0.5);
-    let late = pegtwin::control::tcp_error(&cell.tcp_pose(), &start)[0];
+    let late = pegtwin::twin::control::tcp_error(&cell.tcp_pose(), &start)[0];
     assert!(
         early > 0.01 && late > early + 0.01,
         "capped spring must yield: {early} then {late} m"

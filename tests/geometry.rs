@@ -1,9 +1,9 @@
 //! Built-in geometry: exact decomposition, watertight exports, clearance as requested.
 
 use nalgebra::Vector3;
-use pegtwin::geometry::planar::{P2, distance_to_segment};
-use pegtwin::geometry::solid::{ConvexPiece, Solid};
-use pegtwin::geometry::{Builtin, build_builtin};
+use pegtwin::twin::geometry::planar::{P2, distance_to_segment};
+use pegtwin::twin::geometry::solid::{ConvexPiece, Solid};
+use pegtwin::twin::geometry::{Builtin, build_builtin};
 use std::collections::HashMap;
 
 const CLEARANCES_MM: [f64; 4] = [0.1, 0.2, 0.5, 1.0];
@@ -110,7 +110,7 @@ fn exported_stls_are_watertight_and_keep_the_clearance() {
         for c in CLEARANCES_MM {
             let pair = build_builtin(b, c * 1e-3).unwrap();
             let out = dir.path().join(format!("{}-{c}", b.name()));
-            pegtwin::geometry::export_stl(&pair, &out, false).unwrap();
+            pegtwin::twin::geometry::export_stl(&pair, &out, false).unwrap();
             let peg = read_stl(&out.join("peg.stl"));
             let hole = read_stl(&out.join("hole.stl"));
             assert!(
@@ -179,7 +179,7 @@ fn bad_clearances_and_names_are_rejected() {
     assert!(build_builtin(Builtin::Cross, 0.0).is_err());
     assert!(build_builtin(Builtin::Cross, -1e-4).is_err());
     assert!(build_builtin(Builtin::Cross, 5.1e-3).is_err());
-    let err = pegtwin::geometry::builtin_by_name("hexagon")
+    let err = pegtwin::twin::geometry::builtin_by_name("hexagon")
         .unwrap_err()
         .to_string();
     assert!(err.contains("hexagon") && err.contains("cross"), "{err}");

@@ -84,8 +84,8 @@ fn csv_round_trip_keeps_poses_and_normals_bit_for_bit() {
     );
     let o = pegtwin(&["manifold", "import", s(&csv), "--out", s(&back)]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let a = pegtwin::manifold::file::load(&m).unwrap();
-    let b = pegtwin::manifold::file::load(&back).unwrap();
+    let a = pegtwin::method::manifold::file::load(&m).unwrap();
+    let b = pegtwin::method::manifold::file::load(&back).unwrap();
     assert_eq!(a.points, b.points);
     assert_eq!(a.normals, b.normals);
     // A CSV without normals gets them computed: the same as the generator's.
@@ -100,7 +100,7 @@ fn csv_round_trip_keeps_poses_and_normals_bit_for_bit() {
     let back6 = dir.path().join("back6.manifold");
     let o = pegtwin(&["manifold", "import", s(&csv6), "--out", s(&back6)]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let c = pegtwin::manifold::file::load(&back6).unwrap();
+    let c = pegtwin::method::manifold::file::load(&back6).unwrap();
     assert_eq!(a.normals, c.normals);
 }
 

@@ -1,10 +1,10 @@
 //! Meshes in: convex-part folders, single non-convex files, and bad files.
 
-use pegtwin::geometry::mesh::{MeshUnits, load_solid};
-use pegtwin::geometry::{Builtin, build_builtin, export_stl};
+use pegtwin::twin::geometry::mesh::{MeshUnits, load_solid};
+use pegtwin::twin::geometry::{Builtin, build_builtin, export_stl};
 use std::io::Write;
 
-fn volume(solid: &pegtwin::geometry::solid::Solid) -> f64 {
+fn volume(solid: &pegtwin::twin::geometry::solid::Solid) -> f64 {
     solid.pieces.iter().map(|p| p.to_mesh().volume()).sum()
 }
 

@@ -2,10 +2,10 @@
 //! accuracy per axis, the weakly observable axes, the printed update's divergence, the paper
 //! update's slow convergence against least squares, determinism across thread counts.
 
-use pegtwin::manifold::synthetic::SyntheticPair;
-use pegtwin::manifold::{Manifold, ManifoldMeta, UNITS};
+use pegtwin::method::manifold::synthetic::SyntheticPair;
+use pegtwin::method::manifold::{Manifold, ManifoldMeta, UNITS};
+use pegtwin::method::register::{PaperUpdate, RegistrationConfig, Solver, register};
 use pegtwin::pose::{Pose6, PoseMetric};
-use pegtwin::registration::{PaperUpdate, RegistrationConfig, Solver, register};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -3,8 +3,8 @@
 //! gravity torques and effective masses (5.3), and the loader's rules and errors.
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
-use pegtwin::robot::urdf::{IIWA7_URDF, IIWA14_URDF, load};
-use pegtwin::robot::{GRAVITY_UPRIGHT, RobotModel};
+use pegtwin::twin::robot::urdf::{IIWA7_URDF, IIWA14_URDF, load};
+use pegtwin::twin::robot::{GRAVITY_UPRIGHT, RobotModel};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 use std::path::Path;
 
@@ -329,7 +329,7 @@ fn any_serial_chain_loads_with_package_meshes_as_convex_hulls() {
     assert_eq!(m.flange_name, "tip");
     assert!((m.flange_pose(&[0.3]).translation.vector.z - 0.5).abs() < 1e-12);
     match &m.links[0].collision[0].shape {
-        pegtwin::robot::Shape::ConvexHull { points } => {
+        pegtwin::twin::robot::Shape::ConvexHull { points } => {
             assert!(points.iter().all(|p| p.coords.amax() <= 0.1 + 1e-12));
         }
         other => panic!("expected a convex hull, got {other:?}"),

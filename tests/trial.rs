@@ -4,14 +4,14 @@
 
 mod common;
 use common::{pegtwin, stderr};
-use pegtwin::cell::CellParams;
-use pegtwin::manifold::build::{SamplerConfig, build};
-use pegtwin::trial::{Method, TrialConfig, run_trial};
+use pegtwin::method::manifold::build::{SamplerConfig, build};
+use pegtwin::method::trial::{Method, TrialConfig, run_trial};
+use pegtwin::twin::cell::CellParams;
 use std::path::{Path, PathBuf};
 
-fn cross(clearance_m: f64) -> pegtwin::geometry::PartPair {
-    pegtwin::geometry::build_builtin(
-        pegtwin::geometry::builtin_by_name("cross").unwrap(),
+fn cross(clearance_m: f64) -> pegtwin::twin::geometry::PartPair {
+    pegtwin::twin::geometry::build_builtin(
+        pegtwin::twin::geometry::builtin_by_name("cross").unwrap(),
         clearance_m,
     )
     .unwrap()
@@ -24,7 +24,7 @@ fn small_manifold(dir: &Path, clearance_m: f64) -> PathBuf {
         episode_s: 5.0,
         ..Default::default()
     };
-    let robot = pegtwin::robot::urdf::iiwa14().unwrap();
+    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
     let report = build(
         &cross(clearance_m),
         &robot,
@@ -36,7 +36,7 @@ fn small_manifold(dir: &Path, clearance_m: f64) -> PathBuf {
     )
     .unwrap();
     let path = dir.join("cross.manifold");
-    pegtwin::manifold::file::save(&report.manifold, &path).unwrap();
+    pegtwin::method::manifold::file::save(&report.manifold, &path).unwrap();
     path
 }
 
@@ -105,7 +105,7 @@ fn a_physics_blow_up_ends_as_a_recorded_sim_fault() {
         t_obs_s: 3.0,
         ..Default::default()
     };
-    let robot = pegtwin::robot::urdf::iiwa14().unwrap();
+    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
     let r = run_trial(&cross(0.5e-3), &robot, &params, &config, None, 1, None).unwrap();
     assert_eq!(r.outcome, "sim_fault");
     assert!(!r.success);
@@ -176,10 +176,10 @@ fn bad_input_is_refused_with_exit_2() {
 #[test]
 fn a_search_from_above_finds_the_offset_hole_and_inserts() {
     let pair = cross(0.5e-3);
-    let robot = pegtwin::robot::urdf::iiwa14().unwrap();
+    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
     let config = TrialConfig {
         method: Method::Direct,
-        start: pegtwin::trial::Start::Above,
+        start: pegtwin::method::trial::Start::Above,
         t_obs_s: 2.0,
         ..Default::default()
     };

@@ -1,13 +1,13 @@
 //! `pegtwin campaign`, `merge`, `check` and `tune`.
 
-use crate::campaign::{self, CampaignOptions, RunOptions, Shard};
-use crate::check::{Baseline, compare, findings_table};
-use crate::error::{Error, Result};
-use crate::manifold::cache;
-use crate::report;
-use crate::scenario::Scenario;
-use crate::tune::{TuneOptions, tune};
 use clap::Args;
+use pegtwin::campaign::check::{Baseline, compare, findings_table};
+use pegtwin::campaign::run::{self as campaign, CampaignOptions, RunOptions, Shard};
+use pegtwin::campaign::scenario::Scenario;
+use pegtwin::campaign::tune::{TuneOptions, tune};
+use pegtwin::campaign::{report, summary};
+use pegtwin::error::{Error, Result};
+use pegtwin::method::manifold::cache;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -115,7 +115,7 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
     let outcome =
         pool(args.threads)?.install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
     let summary = report::write_all(&args.out, &scenario, &outcome.records)?;
-    print!("{}", report::summary_table(&summary));
+    print!("{}", summary::summary_table(&summary));
     println!(
         "{} trials ({} run now) in {:.1} s; results in {}",
         outcome.records.len(),
@@ -129,7 +129,7 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
 pub fn merge_command(args: MergeArgs) -> Result<i32> {
     let (scenario, records) = campaign::merge(&args.dirs, &args.out)?;
     let summary = report::write_all(&args.out, &scenario, &records)?;
-    print!("{}", report::summary_table(&summary));
+    print!("{}", summary::summary_table(&summary));
     println!(
         "{} trials from {} shards; results in {}",
         records.len(),
@@ -139,7 +139,7 @@ pub fn merge_command(args: MergeArgs) -> Result<i32> {
     Ok(0)
 }
 
-fn finished_summary(dir: &Path) -> Result<report::Summary> {
+fn finished_summary(dir: &Path) -> Result<summary::Summary> {
     let c = campaign::read_campaign(dir)?;
     if c.shard != Shard::WHOLE {
         return Err(Error::file(
@@ -162,7 +162,7 @@ fn finished_summary(dir: &Path) -> Result<report::Summary> {
             ),
         ));
     }
-    Ok(report::summarise(&c.scenario, &records))
+    Ok(summary::summarise(&c.scenario, &records))
 }
 
 pub fn check_command(args: CheckArgs) -> Result<i32> {
@@ -170,7 +170,7 @@ pub fn check_command(args: CheckArgs) -> Result<i32> {
     if let Some(path) = &args.write_baseline {
         let json = serde_json::to_vec_pretty(&Baseline::from_summary(&summary))
             .expect("baseline serialises");
-        crate::manifold::file::write_atomically(path, &json)?;
+        pegtwin::files::write_atomically(path, &json)?;
         println!(
             "baseline of {} cells written to {}",
             summary.cells.len(),
@@ -220,10 +220,10 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
     })?;
     std::fs::create_dir_all(&args.out)
         .map_err(|e| Error::file(&args.out, format!("cannot create: {e}")))?;
-    report::plots::write_tune(&args.out, &evals)?;
-    crate::manifold::file::write_atomically(
+    report::write_tune(&args.out, &evals)?;
+    pegtwin::files::write_atomically(
         &args.out.join("tune.csv"),
-        &crate::tune::evaluations_csv(&evals),
+        &pegtwin::campaign::tune::evaluations_csv(&evals),
     )?;
     let last_rung = evals.last().map_or(0, |e| e.rung);
     let best = evals

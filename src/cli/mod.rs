@@ -1,12 +1,12 @@
 //! The command line: parses, calls the library, prints. Flags that people type take millimetres
 //! and degrees and say so in their names.
 
-use crate::error::{Error, Result};
-use crate::geometry::mesh::{MeshUnits, load_solid};
-use crate::geometry::{self, Builtin, PartPair};
-use crate::sim::PhysicsParams;
-use crate::validate::{FreePegGains, ValidationReport, validate};
 use clap::{Args, Parser, Subcommand};
+use pegtwin::error::{Error, Result};
+use pegtwin::twin::geometry::mesh::{MeshUnits, load_solid};
+use pegtwin::twin::geometry::{self, Builtin, PartPair};
+use pegtwin::twin::physics::PhysicsParams;
+use pegtwin::twin::validate::{FreePegGains, ValidationReport, validate};
 use std::path::PathBuf;
 
 mod campaign;

@@ -1,16 +1,16 @@
 //! `pegtwin manifold ...` and `pegtwin register`: manifold files and Algorithm 1 from the command
 //! line.
 
-use crate::error::{Error, Result};
-use crate::manifold::build::SamplerConfig;
-use crate::manifold::file::{self, read_csv};
-use crate::manifold::synthetic::SyntheticPair;
-use crate::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
-use crate::pose::{Pose6, PoseMetric};
-use crate::registration::{
+use clap::{Args, Subcommand, ValueEnum};
+use pegtwin::error::{Error, Result};
+use pegtwin::method::manifold::build::SamplerConfig;
+use pegtwin::method::manifold::file::{self, read_csv};
+use pegtwin::method::manifold::synthetic::SyntheticPair;
+use pegtwin::method::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
+use pegtwin::method::register::{
     DEFAULT_RESTARTS, DEFAULT_SIGMA_DEG, Registration, RegistrationConfig, Solver, register,
 };
-use clap::{Args, Subcommand, ValueEnum};
+use pegtwin::pose::{Pose6, PoseMetric};
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
@@ -175,7 +175,7 @@ pub fn parse_pose(flag: &str, text: &str) -> Result<Pose6> {
             .ok_or_else(|| {
                 Error::Input(format!(
                     "{flag}: {} = `{v}` is not a finite number",
-                    crate::manifold::file::POSE_COLUMNS[k]
+                    pegtwin::method::manifold::file::POSE_COLUMNS[k]
                 ))
             })?;
     }
@@ -219,7 +219,7 @@ pub fn manifold_command(action: ManifoldAction) -> Result<i32> {
                 meta.geometry = g;
             }
             if let Some(c) = clearance_mm {
-                crate::geometry::check_clearance(c * 1e-3)?;
+                pegtwin::twin::geometry::check_clearance(c * 1e-3)?;
                 meta.clearance_m = Some(c * 1e-3);
             }
             let data = read_csv(&csv)?;
@@ -266,12 +266,12 @@ pub struct BuildArgs {
 
 fn build(args: BuildArgs) -> Result<()> {
     let clearance_m = args.clearance_mm * 1e-3;
-    crate::geometry::check_clearance(clearance_m)?;
-    let pair = crate::geometry::build_builtin(
-        crate::geometry::builtin_by_name(&args.geometry)?,
+    pegtwin::twin::geometry::check_clearance(clearance_m)?;
+    let pair = pegtwin::twin::geometry::build_builtin(
+        pegtwin::twin::geometry::builtin_by_name(&args.geometry)?,
         clearance_m,
     )?;
-    let robot = crate::robot::urdf::iiwa14()?;
+    let robot = pegtwin::twin::robot::urdf::iiwa14()?;
     let config = SamplerConfig {
         episodes: args.episodes,
         episode_s: args.episode_s,
@@ -294,10 +294,10 @@ fn build(args: BuildArgs) -> Result<()> {
         ));
     }
     let started = std::time::Instant::now();
-    let report = crate::manifold::build::build(
+    let report = pegtwin::method::manifold::build::build(
         &pair,
         &robot,
-        &crate::cell::CellParams::default(),
+        &pegtwin::twin::cell::CellParams::default(),
         &config,
         args.points,
         args.seed,
@@ -325,7 +325,7 @@ fn build(args: BuildArgs) -> Result<()> {
 
 fn synth(args: SynthArgs) -> Result<()> {
     let c = args.clearance_mm * 1e-3;
-    crate::geometry::check_clearance(c)?;
+    pegtwin::twin::geometry::check_clearance(c)?;
     if args.points < args.metric.k.max(7) {
         return Err(Error::Input(format!(
             "--points {}: expected at least --k = {} points",
@@ -404,7 +404,10 @@ fn print_info(path: &Path, m: &Manifold, json: bool) {
         m.meta.normal_k
     );
     println!("source: {}", m.meta.source);
-    for (name, r) in crate::manifold::file::POSE_COLUMNS.iter().zip(ranges) {
+    for (name, r) in pegtwin::method::manifold::file::POSE_COLUMNS
+        .iter()
+        .zip(ranges)
+    {
         let (scale, unit) = if ["x", "y", "z"].contains(name) {
             (1e3, "mm")
         } else {

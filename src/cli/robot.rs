@@ -1,13 +1,13 @@
 //! `pegtwin robot ...`: what a robotics user checks before trusting the arm model.
 
-use crate::cell::CellParams;
-use crate::control::ImpedanceGains;
-use crate::diagnostics::{AxisStiffness, PushTest, measure_stiffness};
-use crate::error::{Error, Result};
-use crate::geometry::{self, build_builtin, builtin_by_name};
-use crate::robot::urdf::{IIWA14_URDF, load};
-use crate::robot::{GRAVITY_UPRIGHT, RobotModel};
 use clap::{Args, Subcommand};
+use pegtwin::error::{Error, Result};
+use pegtwin::twin::cell::CellParams;
+use pegtwin::twin::control::ImpedanceGains;
+use pegtwin::twin::diagnostics::{AxisStiffness, PushTest, measure_stiffness};
+use pegtwin::twin::geometry::{self, build_builtin, builtin_by_name};
+use pegtwin::twin::robot::urdf::{IIWA14_URDF, load};
+use pegtwin::twin::robot::{GRAVITY_UPRIGHT, RobotModel};
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -262,7 +262,7 @@ fn stiffness_command(args: &StiffnessArgs) -> Result<i32> {
     );
     gains.validate()?;
     for (flag, v) in [("--force-n", args.force_n), ("--torque-nm", args.torque_nm)] {
-        if !crate::control::is_positive(v) {
+        if !pegtwin::twin::control::is_positive(v) {
             return Err(Error::Input(format!(
                 "{flag} {v}: expected a positive push"
             )));

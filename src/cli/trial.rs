@@ -1,13 +1,15 @@
 //! `pegtwin trial`: one online trial, the manifold method or the direct baseline.
 
-use crate::cell::CellParams;
-use crate::error::{Error, Result};
-use crate::geometry::{self, PartPair};
-use crate::manifold::Manifold;
-use crate::manifold::{cache, file};
-use crate::scenario::ManifoldSpec;
-use crate::trial::{Method, Start, TrialConfig, TrialResult, check_manifold, run_trial, trace_csv};
 use clap::Args;
+use pegtwin::campaign::scenario::ManifoldSpec;
+use pegtwin::error::{Error, Result};
+use pegtwin::method::manifold::Manifold;
+use pegtwin::method::manifold::{cache, file};
+use pegtwin::method::trial::{
+    Method, Start, TrialConfig, TrialResult, check_manifold, run_trial, trace_csv,
+};
+use pegtwin::twin::cell::CellParams;
+use pegtwin::twin::geometry::{self, PartPair};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -72,7 +74,7 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
         ..Default::default()
     };
     config.validate()?;
-    let robot = crate::robot::urdf::iiwa14()?;
+    let robot = pegtwin::twin::robot::urdf::iiwa14()?;
     let params = CellParams::default();
     let manifold = match args.method {
         Method::Manifold => Some(reference_manifold(&args, &pair, &robot, &params)?),
@@ -89,7 +91,7 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
         trace.as_mut(),
     )?;
     if let (Some(path), Some(rows)) = (&args.trace, &trace) {
-        file::write_atomically(path, &trace_csv(rows))?;
+        pegtwin::files::write_atomically(path, &trace_csv(rows))?;
     }
     if args.json {
         println!(
@@ -106,7 +108,7 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
 fn reference_manifold(
     args: &TrialArgs,
     pair: &PartPair,
-    robot: &crate::robot::RobotModel,
+    robot: &pegtwin::twin::robot::RobotModel,
     params: &CellParams,
 ) -> Result<Manifold> {
     if let Some(path) = &args.manifold {

@@ -10,12 +10,12 @@
 //! Text is drawn with the DejaVu Sans font shipped in `assets/fonts` (no system font lookup), so
 //! the figures look the same on every machine.
 
-use super::{AXES, Summary, abs_errors};
-use crate::campaign::TrialRecord;
+use super::summary::{AXES, MeanStd, Summary, abs_errors, wilson_interval};
+use crate::campaign::run::TrialRecord;
+use crate::campaign::scenario::Scenario;
+use crate::campaign::tune::Evaluation;
 use crate::error::{Error, Result};
-use crate::scenario::Scenario;
-use crate::trial::{FZ_PROFILE_DT_S, Method};
-use crate::tune::Evaluation;
+use crate::method::trial::{FZ_PROFILE_DT_S, Method};
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
@@ -155,7 +155,7 @@ fn success_series(summary: &Summary, geometries: &[String]) -> Vec<BarSeries> {
                         .iter()
                         .fold((0, 0), |(n, k), c| (n + c.trials, k + c.successes));
                     (n > 0).then(|| {
-                        let ci = super::wilson_interval(k, n);
+                        let ci = wilson_interval(k, n);
                         [k as f64 / n as f64 * 100.0, ci[0] * 100.0, ci[1] * 100.0]
                     })
                 })
@@ -339,7 +339,7 @@ fn profile_band(records: &[&TrialRecord]) -> Vec<(f64, f64, f64)> {
                 .iter()
                 .filter_map(|r| r.result.insert_fz_n.get(k).copied())
                 .collect();
-            super::MeanStd::of(&v).map(|m| (k as f64 * FZ_PROFILE_DT_S, m.mean, m.std))
+            MeanStd::of(&v).map(|m| (k as f64 * FZ_PROFILE_DT_S, m.mean, m.std))
         })
         .collect()
 }
@@ -463,6 +463,22 @@ pub fn write_tune(dir: &Path, evals: &[Evaluation]) -> Result<()> {
     )
 }
 
+/// Writes `summary.json`, `summary.csv` and the report (`report.html`, `figures/`) into `dir`.
+pub fn write_all(dir: &Path, scenario: &Scenario, records: &[TrialRecord]) -> Result<Summary> {
+    let summary = super::summary::summarise(scenario, records);
+    let write = crate::files::write_atomically;
+    write(
+        &dir.join("summary.json"),
+        &serde_json::to_vec_pretty(&summary).expect("summary serialises"),
+    )?;
+    write(
+        &dir.join("summary.csv"),
+        &super::summary::summary_csv(&summary),
+    )?;
+    write_report(dir, scenario, records, &summary)?;
+    Ok(summary)
+}
+
 /// Draws the three figures into `dir/figures` and writes `dir/report.html`.
 pub fn write_report(
     dir: &Path,
@@ -496,10 +512,7 @@ pub fn write_report(
     )?;
     let all: Vec<&TrialRecord> = records.iter().collect();
     render(dir, "fig6_fz", |a| draw_fz(a, &all), |a| draw_fz(a, &all))?;
-    crate::manifold::file::write_atomically(
-        &dir.join("report.html"),
-        html(scenario, summary).as_bytes(),
-    )
+    crate::files::write_atomically(&dir.join("report.html"), html(scenario, summary).as_bytes())
 }
 
 fn escape(s: &str) -> String {
@@ -512,9 +525,8 @@ fn html(scenario: &Scenario, summary: &Summary) -> String {
     let mut rows = String::new();
     for c in summary.cells.iter().chain(&summary.pooled) {
         let mae = |a: usize| c.mae.map_or(String::new(), |m| format!("{:.2}", m[a]));
-        let fz = |m: Option<super::MeanStd>| {
-            m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std))
-        };
+        let fz =
+            |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std));
         rows += &format!(
             "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td></tr>\n",
             escape(&c.cell.geometry),

@@ -1,11 +1,11 @@
 //! Robot diagnostics a robotics user expects before trusting the twin: the static stiffness the
 //! arm really shows under its Cartesian impedance, measured in simulation by pushing the TCP.
 
-use crate::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
-use crate::control::{ImpedanceGains, tcp_error};
 use crate::error::Result;
-use crate::geometry::PartPair;
-use crate::robot::RobotModel;
+use crate::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
+use crate::twin::control::{ImpedanceGains, tcp_error};
+use crate::twin::geometry::PartPair;
+use crate::twin::robot::RobotModel;
 use nalgebra::Vector6;
 use rayon::prelude::*;
 use serde::Serialize;

@@ -10,7 +10,7 @@
 //! (self-contacts off): the controller keeps the arm inside its limits and away from itself.
 
 use super::{pose32, pose64, v32};
-use crate::robot::{Iso, JointKind, RobotModel, Shape};
+use crate::twin::robot::{Iso, JointKind, RobotModel, Shape};
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 
@@ -196,7 +196,7 @@ impl Arm {
 fn add_link_colliders(
     world: &mut PhysicsWorld,
     body: RigidBodyHandle,
-    shapes: &[crate::robot::CollisionShape],
+    shapes: &[crate::twin::robot::CollisionShape],
 ) {
     for c in shapes {
         let mut origin = c.origin;

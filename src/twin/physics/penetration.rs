@@ -3,7 +3,7 @@
 //! minimum over all face normals and edge-edge cross products of the projected overlap is the
 //! penetration depth (the shortest translation that separates them).
 
-use crate::geometry::solid::{ConvexPiece, P3, Solid};
+use crate::twin::geometry::solid::{ConvexPiece, P3, Solid};
 use nalgebra::{Isometry3, Vector3};
 
 /// A convex piece's vertices, face normals and edge directions placed in the world.
@@ -110,8 +110,8 @@ impl PenetrationProbe {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::planar::rect;
-    use crate::geometry::solid::ZPlane;
+    use crate::twin::geometry::planar::rect;
+    use crate::twin::geometry::solid::ZPlane;
 
     fn cube(x: f64, y: f64, z: f64) -> ConvexPiece {
         ConvexPiece::slab(

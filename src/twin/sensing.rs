@@ -21,7 +21,7 @@
 //! [`SensorParams`], and every one of them is configurable.
 
 use crate::error::{Error, Result};
-use crate::robot::Dynamics;
+use crate::twin::robot::Dynamics;
 use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -231,7 +231,7 @@ mod tests {
 
     #[test]
     fn wrench_inversion_recovers_a_wrench_at_a_regular_configuration() {
-        let robot = crate::robot::urdf::iiwa14().unwrap();
+        let robot = crate::twin::robot::urdf::iiwa14().unwrap();
         let q = [0.1, 0.7, -0.2, -1.4, 0.3, 0.9, 0.2];
         let k = robot.kinematics(&q);
         let jac = robot.tcp_jacobian(&k);

@@ -6,9 +6,11 @@
 //! `sim::penetration`), the contact force read from the solver against a momentum check
 //! (m dv/dt minus the applied forces), and the physics speed in steps per second.
 
-use crate::geometry::PartPair;
-use crate::sim::penetration::PenetrationProbe;
-use crate::sim::{PhysicsParams, add_dynamic, add_fixed, contact_wrench, pose64, v32, v64};
+use crate::twin::geometry::PartPair;
+use crate::twin::physics::penetration::PenetrationProbe;
+use crate::twin::physics::{
+    PhysicsParams, add_dynamic, add_fixed, contact_wrench, pose64, v32, v64,
+};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::{ColliderHandle, PhysicsWorld, RigidBodyHandle};
 use serde::Serialize;
@@ -135,8 +137,8 @@ impl FreePegRig {
         rb.reset_torques(true);
         rb.add_force(v32(&(force + gravity_comp)), true);
         rb.add_torque(v32(&torque), true);
-        let speed = crate::sim::max_point_speed(&self.world, self.body, self.reach_m);
-        crate::sim::set_prediction_for_speed(&mut self.world, speed);
+        let speed = crate::twin::physics::max_point_speed(&self.world, self.body, self.reach_m);
+        crate::twin::physics::set_prediction_for_speed(&mut self.world, speed);
         let started = Instant::now();
         self.world.step();
         let step_s = started.elapsed().as_secs_f64();

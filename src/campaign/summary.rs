@@ -10,14 +10,10 @@
 //! - peak |Fz| during insertion, mean and standard deviation, for successes and failures apart;
 //! - mean simulated time per phase.
 
-pub mod plots;
-
-use crate::campaign::TrialRecord;
-use crate::error::Result;
-use crate::scenario::{Cell, Scenario};
-use crate::trial::Method;
+use crate::campaign::run::TrialRecord;
+use crate::campaign::scenario::{Cell, Scenario};
+use crate::method::trial::Method;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
 
 /// z of the two-sided 95 % normal quantile.
 const Z95: f64 = 1.959_963_984_540_054;
@@ -320,19 +316,6 @@ pub fn summary_table(summary: &Summary) -> String {
         );
     }
     out
-}
-
-/// Writes `summary.json`, `summary.csv` and the report (`report.html`, `figures/`) into `dir`.
-pub fn write_all(dir: &Path, scenario: &Scenario, records: &[TrialRecord]) -> Result<Summary> {
-    let summary = summarise(scenario, records);
-    let write = crate::manifold::file::write_atomically;
-    write(
-        &dir.join("summary.json"),
-        &serde_json::to_vec_pretty(&summary).expect("summary serialises"),
-    )?;
-    write(&dir.join("summary.csv"), &summary_csv(&summary))?;
-    plots::write_report(dir, scenario, records, &summary)?;
-    Ok(summary)
 }
 
 #[cfg(test)]

@@ -9,11 +9,11 @@
 use super::Manifold;
 use super::build::{SamplerConfig, build};
 use super::file;
-use crate::cell::CellParams;
 use crate::error::{Error, Result};
-use crate::geometry::PartPair;
-use crate::robot::RobotModel;
-use crate::trial::check_manifold;
+use crate::method::trial::check_manifold;
+use crate::twin::cell::CellParams;
+use crate::twin::geometry::PartPair;
+use crate::twin::robot::RobotModel;
 use std::path::{Path, PathBuf};
 
 /// What a reference manifold is made from.

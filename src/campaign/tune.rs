@@ -15,9 +15,9 @@
 //! insertion translational 300-5000 N/m (x, y; z 2000 N/m kept), rotational 10-300 N m/rad,
 //! damping 0.3-1.0. Stiffnesses are drawn log-uniformly.
 
-use crate::campaign::{Prepared, RunOptions, TrialRecord, all_trials, prepare, run_trials};
+use crate::campaign::run::{Prepared, RunOptions, TrialRecord, all_trials, prepare, run_trials};
+use crate::campaign::scenario::Scenario;
 use crate::error::{Error, Result};
-use crate::scenario::Scenario;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -208,7 +208,7 @@ fn evaluate(
         trials: records.len(),
         successes,
         success_rate: successes as f64 / records.len().max(1) as f64,
-        peak_fz_n: crate::report::MeanStd::of(&peaks).map_or(f64::NAN, |m| m.mean),
+        peak_fz_n: crate::campaign::summary::MeanStd::of(&peaks).map_or(f64::NAN, |m| m.mean),
     })
 }
 

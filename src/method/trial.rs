@@ -9,16 +9,16 @@
 //! true hole pose sets up the experiment (the fixture and the initial partial insertion, as the
 //! experimenters placed them) and scores it; it never reaches the method.
 
-use crate::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
-use crate::control::ImpedanceGains;
 use crate::error::{Error, Result};
-use crate::geometry::PartPair;
-use crate::manifold::Manifold;
-use crate::manifold::build::SamplerConfig;
+use crate::method::manifold::Manifold;
+use crate::method::manifold::build::SamplerConfig;
+use crate::method::primitives::{Descent, PerturbationState};
+use crate::method::register::{RegistrationConfig, register};
 use crate::pose::Pose6;
-use crate::primitives::{Descent, PerturbationState};
-use crate::registration::{RegistrationConfig, register};
-use crate::robot::{Iso, RobotModel};
+use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
+use crate::twin::control::ImpedanceGains;
+use crate::twin::geometry::PartPair;
+use crate::twin::robot::{Iso, RobotModel};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -142,7 +142,7 @@ impl Default for TrialConfig {
 impl TrialConfig {
     /// Rejects values a trial cannot run with, naming the field.
     pub fn validate(&self) -> Result<()> {
-        if !crate::control::is_positive(self.t_obs_s) {
+        if !crate::twin::control::is_positive(self.t_obs_s) {
             return Err(Error::Input(format!(
                 "t_obs {} s: expected a positive time",
                 self.t_obs_s
@@ -164,7 +164,7 @@ impl TrialConfig {
                 self.insert_overshoot_m
             )));
         }
-        if !crate::control::is_positive(self.insert_stop_force_n) {
+        if !crate::twin::control::is_positive(self.insert_stop_force_n) {
             return Err(Error::Input(format!(
                 "insert_stop_force_n {} N: expected a positive force",
                 self.insert_stop_force_n
@@ -620,7 +620,7 @@ fn search(run: &mut Run, nominal: &Iso, config: &TrialConfig, clearance_m: f64) 
     let contact_z = contact_z?;
     // Press 3 mm below the surface and spiral.
     let r = &config.offset_range;
-    let spiral = crate::primitives::Spiral {
+    let spiral = crate::method::primitives::Spiral {
         max_radius_m: r[0].max(r[1]) + clearance_m + 1e-3,
         pitch_m: 0.5e-3,
         speed_m_per_s: 10e-3,
@@ -763,12 +763,12 @@ impl Run<'_> {
     /// New impedance gains, keeping the current target (Sunrise mode switch).
     fn switch_gains(&mut self, gains: ImpedanceGains) {
         let target = match self.cell.controller.mode() {
-            crate::control::Mode::CartesianImpedance { target, .. } => *target,
-            crate::control::Mode::JointPosition { .. } => self.cell.measured_tcp_pose(),
+            crate::twin::control::Mode::CartesianImpedance { target, .. } => *target,
+            crate::twin::control::Mode::JointPosition { .. } => self.cell.measured_tcp_pose(),
         };
         self.cell
             .controller
-            .set_mode(crate::control::Mode::CartesianImpedance { gains, target })
+            .set_mode(crate::twin::control::Mode::CartesianImpedance { gains, target })
             .expect("gains checked by TrialConfig::validate");
     }
 }

@@ -13,7 +13,7 @@ use super::{
     iso_xyz_rpy,
 };
 use crate::error::{Error, Result};
-use crate::geometry::mesh::{MeshUnits, read_mesh};
+use crate::twin::geometry::mesh::{MeshUnits, read_mesh};
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

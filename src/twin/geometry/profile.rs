@@ -302,7 +302,7 @@ fn gear(d: f64, tol: f64) -> Vec<Vec<P2>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::planar::{signed_area, union};
+    use crate::twin::geometry::planar::{signed_area, union};
 
     #[test]
     fn every_piece_is_convex_and_counter_clockwise() {

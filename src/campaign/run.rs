@@ -13,12 +13,12 @@
 //! (cell, trial) order once the run is complete. A kill can only cut the last line short;
 //! `--resume` drops that line, keeps the finished trials and runs the rest.
 
+use crate::campaign::scenario::{Cell, Scenario};
 use crate::error::{Error, Result};
-use crate::geometry::{self, PartPair};
-use crate::manifold::{Manifold, cache};
-use crate::robot::RobotModel;
-use crate::scenario::{Cell, Scenario};
-use crate::trial::{Method, TrialResult, run_trial};
+use crate::method::manifold::{Manifold, cache};
+use crate::method::trial::{Method, TrialResult, run_trial};
+use crate::twin::geometry::{self, PartPair};
+use crate::twin::robot::RobotModel;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
@@ -157,7 +157,7 @@ pub fn prepare(
     trials: &[TrialSpec],
     options: &RunOptions,
 ) -> Result<Prepared> {
-    let robot = crate::robot::urdf::iiwa14()?;
+    let robot = crate::twin::robot::urdf::iiwa14()?;
     let cells = scenario.cells();
     let params = scenario.cell_params();
     let sampler = scenario.manifold.sampler();
@@ -348,7 +348,7 @@ fn open_folder(out: &Path, described: &CampaignFile, resume: bool) -> Result<()>
     ensure_new_or_empty(out, "holds no campaign.json")?;
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, format!("cannot create: {e}")))?;
     let json = serde_json::to_vec_pretty(described).expect("campaign serialises");
-    crate::manifold::file::write_atomically(&campaign_path, &json)
+    crate::files::write_atomically(&campaign_path, &json)
 }
 
 /// Refuses an output folder that exists and holds anything (`why` says what it lacks).
@@ -474,7 +474,7 @@ pub fn write_records(path: &Path, records: &[TrialRecord]) -> Result<()> {
         serde_json::to_writer(&mut bytes, r).expect("record serialises");
         bytes.push(b'\n');
     }
-    crate::manifold::file::write_atomically(path, &bytes)
+    crate::files::write_atomically(path, &bytes)
 }
 
 /// Joins the shards in `dirs` into one campaign folder `out`: same scenario, every shard of the

@@ -8,14 +8,14 @@
 //! `offset_deg`); gains and sensor parameters are SI as in the code (stiffness N/m on x, y, z and
 //! N m/rad on roll, pitch, yaw, in the TCP frame). The fields are listed in the README.
 
-use crate::cell::CellParams;
-use crate::control::ImpedanceGains;
 use crate::error::{Error, Result};
-use crate::geometry;
-use crate::manifold::build::SamplerConfig;
-use crate::registration::RegistrationConfig;
-use crate::sensing::SensorParams;
-use crate::trial::{Method, Start, TrialConfig};
+use crate::method::manifold::build::SamplerConfig;
+use crate::method::register::RegistrationConfig;
+use crate::method::trial::{Method, Start, TrialConfig};
+use crate::twin::cell::CellParams;
+use crate::twin::control::ImpedanceGains;
+use crate::twin::geometry;
+use crate::twin::sensing::SensorParams;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 

@@ -19,7 +19,7 @@
 //! the current pose, and the rate limit carries the torque across the switch without a jump.
 
 use crate::error::{Error, Result};
-use crate::robot::{Dynamics, GRAVITY_UPRIGHT, Iso, RobotModel};
+use crate::twin::robot::{Dynamics, GRAVITY_UPRIGHT, Iso, RobotModel};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, SymmetricEigen, Vector6};
 use serde::{Deserialize, Serialize};
 

@@ -399,9 +399,9 @@ fn leaf_radius(cache: &mut Vec<Real>, c: &dyn CompositeShape, leaf: u32) -> Real
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{Builtin, build_builtin};
-    use crate::sim::contact::ExactConvexDispatcher;
-    use crate::sim::{compound_collider, pose32};
+    use crate::twin::geometry::{Builtin, build_builtin};
+    use crate::twin::physics::contact::ExactConvexDispatcher;
+    use crate::twin::physics::{compound_collider, pose32};
     use nalgebra::{Isometry3, Vector3};
     use rapier3d::parry::query::details::contact_manifolds_composite_shape_composite_shape;
 

@@ -14,7 +14,7 @@ pub mod compound;
 pub mod contact;
 pub mod penetration;
 
-use crate::geometry::solid::Solid;
+use crate::twin::geometry::solid::Solid;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 

@@ -13,15 +13,15 @@
 //! the pose nearest its cell's mean (a real sample, not an average of poses).
 
 use super::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
-use crate::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
-use crate::control::ImpedanceGains;
 use crate::error::{Error, Result};
-use crate::geometry::PartPair;
-use crate::pose::{Pose6, PoseMetric};
-use crate::primitives::{
+use crate::method::primitives::{
     AmplitudeSchedule, Descent, Perturbation, PerturbationState, SamplingMotion,
 };
-use crate::robot::RobotModel;
+use crate::pose::{Pose6, PoseMetric};
+use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
+use crate::twin::control::ImpedanceGains;
+use crate::twin::geometry::PartPair;
+use crate::twin::robot::RobotModel;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -87,7 +87,7 @@ impl SamplerConfig {
         if self.episodes == 0 {
             return Err(Error::Input("episodes is 0: expected at least 1".into()));
         }
-        if !crate::control::is_positive(self.episode_s) {
+        if !crate::twin::control::is_positive(self.episode_s) {
             return Err(Error::Input(format!(
                 "episode_s is {}: expected a positive time",
                 self.episode_s

@@ -9,7 +9,7 @@
 //!
 //! - **Line 3, initial alignment**: `h,0_T_p = (A_T_h,0)⁻¹ ⊗ A_T_p` for every observation.
 //! - **Line 6, correspondence**: the manifold point nearest to each observation in the scaled 6-D
-//!   space (Euclidean k-d tree, [`crate::manifold::ScaledIndex`]) and its stored normal `n_q`.
+//!   space (Euclidean k-d tree, [`crate::method::manifold::ScaledIndex`]) and its stored normal `n_q`.
 //! - **Line 7, point-to-point misalignment**: `delta_i = (h,t_T_p,i)⁻¹ ⊗ H_T_p,i`, as a 6-vector
 //!   `[x, y, z, roll, pitch, yaw]` in scaled coordinates.
 //! - **Lines 8-9, observation normal**: the `k` nearest observations of each observation, in the
@@ -55,7 +55,7 @@
 //! restarts that agree to micrometres are all kept). The estimate is the SE(3) mean of the rest.
 
 use crate::error::{Error, Result};
-use crate::manifold::{
+use crate::method::manifold::{
     Manifold, NeighbourCache, Resolution, ScaledIndex, neighbourhood_normal, squared_distance,
 };
 use crate::pose::{
@@ -139,7 +139,7 @@ impl Default for RegistrationConfig {
             restarts: DEFAULT_RESTARTS,
             sigma_m: 1e-3,
             sigma_rad: DEFAULT_SIGMA_DEG.to_radians(),
-            normal_k: crate::manifold::DEFAULT_NORMAL_K,
+            normal_k: crate::method::manifold::DEFAULT_NORMAL_K,
             seed: 0,
             paper_update: PaperUpdate::Consistent,
             huber_k: 1.345,
@@ -303,7 +303,7 @@ const NEIGHBOUR_SPARE: usize = 16;
 
 /// Search state carried from one iteration to the next: warm-started correspondences. The caches
 /// only shorten the searches; every answer is the exact nearest neighbour (see
-/// [`crate::manifold::NeighbourCache`]).
+/// [`crate::method::manifold::NeighbourCache`]).
 struct SearchState {
     resolution: Resolution,
     /// Per observation: its nearest manifold points at its last tree search.
@@ -823,8 +823,8 @@ fn median(values: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::manifold::synthetic::SyntheticPair;
-    use crate::manifold::{ManifoldMeta, UNITS};
+    use crate::method::manifold::synthetic::SyntheticPair;
+    use crate::method::manifold::{ManifoldMeta, UNITS};
 
     fn small_manifold() -> Manifold {
         let pair = SyntheticPair::square(0.02, 0.5e-3);

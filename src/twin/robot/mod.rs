@@ -4,7 +4,7 @@
 //! Jacobian (rows `[v; w]`), gravity torques g(q), the joint-space inertia M(q) (links, tool and
 //! rotor inertia) and the Cartesian inertia at the TCP.
 //!
-//! The simulator's multibody ([`crate::sim::arm`]) is built from the same model, so the controller's
+//! The simulator's multibody ([`crate::twin::physics::arm`]) is built from the same model, so the controller's
 //! model and the simulated plant agree except where a test perturbs them on purpose.
 
 pub mod urdf;

@@ -36,20 +36,6 @@ pub const POSE_COLUMNS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 /// Column names of a normal in CSV files.
 pub const NORMAL_COLUMNS: [&str; 6] = ["nx", "ny", "nz", "nroll", "npitch", "nyaw"];
 
-/// Write `bytes` to `path` through a temporary file and a rename.
-pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::file(path, "is not a file path"))?;
-    let tmp = path.with_file_name(format!(".{}.partial", name.to_string_lossy()));
-    let io = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(e)
-    })
-}
-
 /// Save a manifold in the binary format.
 pub fn save(manifold: &Manifold, path: &Path) -> Result<()> {
     let meta = serde_json::to_vec(&manifold.meta).expect("metadata serialises");
@@ -70,7 +56,7 @@ pub fn save(manifold: &Manifold, path: &Path) -> Result<()> {
     }
     let crc = crc32fast::hash(&bytes);
     bytes.extend_from_slice(&crc.to_le_bytes());
-    write_atomically(path, &bytes)
+    crate::files::write_atomically(path, &bytes)
 }
 
 /// A cursor over the bytes of a binary manifold that names the file in its errors.
@@ -271,7 +257,7 @@ pub fn write_csv(path: &Path, poses: &[Pose6], normals: Option<&[[f64; 6]]>) -> 
     let bytes = w
         .into_inner()
         .map_err(|e| Error::file(path, format!("cannot write: {e}")))?;
-    write_atomically(path, &bytes)
+    crate::files::write_atomically(path, &bytes)
 }
 
 /// Load a manifold from a binary file, or import it from a CSV file (`meta` describes a CSV

@@ -7,17 +7,17 @@
 //! z out of the hole), `tcp` = the peg frame (tip centre, z up the peg, so pointing at the flange
 //! when the peg hangs from it).
 
-use crate::control::{Controller, ControllerParams, ImpedanceGains, Mode};
 use crate::error::{Error, Result};
-use crate::geometry::PartPair;
-use crate::robot::{Inertial, Iso, RobotModel, Tool};
-use crate::sensing::{SensorParams, Sensors, Wrench6};
-use crate::sim::arm::Arm;
-use crate::sim::penetration::PenetrationProbe;
-use crate::sim::{
+use crate::twin::control::{Controller, ControllerParams, ImpedanceGains, Mode};
+use crate::twin::geometry::PartPair;
+use crate::twin::physics::arm::Arm;
+use crate::twin::physics::penetration::PenetrationProbe;
+use crate::twin::physics::{
     PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
     set_prediction_for_speed,
 };
+use crate::twin::robot::{Inertial, Iso, RobotModel, Tool};
+use crate::twin::sensing::{SensorParams, Sensors, Wrench6};
 use nalgebra::{DVector, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rapier3d::prelude::{ColliderBuilder, ColliderHandle, PhysicsWorld};
 use serde::{Deserialize, Serialize};
@@ -63,7 +63,7 @@ impl Default for CellParams {
             controller: ControllerParams::default(),
             sensors: SensorParams::default(),
             hole_xy_m: [0.55, 0.0],
-            peg_mass_kg: crate::validate::FREE_PEG_MASS_KG,
+            peg_mass_kg: crate::twin::validate::FREE_PEG_MASS_KG,
         }
     }
 }
@@ -120,7 +120,7 @@ pub struct Cell {
     /// Joint positions as the encoders read them at the last control cycle, rad.
     q_measured: Vec<f64>,
     /// Exact penetration check of the peg against the fixture (fault detection).
-    probe: Option<(PenetrationProbe, crate::geometry::solid::Solid)>,
+    probe: Option<(PenetrationProbe, crate::twin::geometry::solid::Solid)>,
     /// Largest exact penetration before the physics counts as blown up, m.
     penetration_fault_m: f64,
 }
@@ -150,7 +150,7 @@ impl Cell {
         gains: ImpedanceGains,
         seed: u64,
     ) -> Result<Cell> {
-        if !crate::control::is_positive(params.peg_mass_kg) {
+        if !crate::twin::control::is_positive(params.peg_mass_kg) {
             return Err(Error::Input(format!(
                 "peg mass {} kg: expected a positive value",
                 params.peg_mass_kg
@@ -172,7 +172,7 @@ impl Cell {
             .mass_properties();
         let tool_inertial = Inertial {
             mass_kg: peg_props.mass() as f64,
-            com: Point3::from(crate::sim::v64(peg_props.local_com)),
+            com: Point3::from(crate::twin::physics::v64(peg_props.local_com)),
             inertia: nalgebra::Matrix3::from(peg_props.reconstruct_inertia_matrix()).cast::<f64>(),
         }
         .transformed(&tcp_on_flange);
@@ -300,13 +300,16 @@ impl Cell {
     fn apply_push(&mut self, w: &Wrench6) {
         let tcp = self.tcp_pose();
         let body = &mut self.world.bodies[self.arm.last_body()];
-        let at = crate::sim::v32(&tcp.translation.vector);
+        let at = crate::twin::physics::v32(&tcp.translation.vector);
         body.add_force_at_point(
-            crate::sim::v32(&w.fixed_rows::<3>(0).into_owned()),
+            crate::twin::physics::v32(&w.fixed_rows::<3>(0).into_owned()),
             at,
             true,
         );
-        body.add_torque(crate::sim::v32(&w.fixed_rows::<3>(3).into_owned()), true);
+        body.add_torque(
+            crate::twin::physics::v32(&w.fixed_rows::<3>(3).into_owned()),
+            true,
+        );
     }
 
     /// Joint torques being applied, N m.
@@ -382,6 +385,6 @@ impl Cell {
 /// The table: a fixed slab with its top at z = 0 (the base stands on it).
 fn add_table(world: &mut PhysicsWorld) {
     let table = ColliderBuilder::cuboid(0.8, 0.8, 0.025)
-        .translation(crate::sim::v32(&Vector3::new(0.4, 0.0, -0.025)));
+        .translation(crate::twin::physics::v32(&Vector3::new(0.4, 0.0, -0.025)));
     world.insert_collider(table, None);
 }

@@ -10,8 +10,8 @@
 //! keeps its baseline. Cells are matched by geometry, clearance, method and t_obs; a run of a
 //! different scenario (another fingerprint) is still compared cell by cell, with a warning.
 
+use crate::campaign::summary::{AXES, CellSummary, Summary};
 use crate::error::{Error, Result};
-use crate::report::{AXES, CellSummary, Summary};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -171,9 +171,9 @@ pub fn findings_table(findings: &[Finding]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::report::{MeanStd, wilson_interval};
-    use crate::scenario::Cell;
-    use crate::trial::Method;
+    use crate::campaign::scenario::Cell;
+    use crate::campaign::summary::{MeanStd, wilson_interval};
+    use crate::method::trial::Method;
 
     fn cell(successes: usize, mae_x: f64, fz: f64) -> CellSummary {
         CellSummary {
