@@ -43,8 +43,7 @@ fn bench(c: &mut Criterion) {
         .unwrap();
         for _ in 0..200 {
             let t = cell.time_s();
-            cell.controller
-                .set_cartesian_target(probing_target(&start, t));
+            cell.command_pose(probing_target(&start, t));
             cell.step();
         }
         cell
@@ -58,11 +57,10 @@ fn bench(c: &mut Criterion) {
             |mut cell| {
                 for _ in 0..STEPS {
                     let t = cell.time_s();
-                    cell.controller
-                        .set_cartesian_target(probing_target(&start, t));
+                    cell.command_pose(probing_target(&start, t));
                     cell.step();
                 }
-                black_box(cell.tcp_pose())
+                black_box(cell.truth().tcp_pose())
             },
             BatchSize::LargeInput,
         )

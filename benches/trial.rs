@@ -4,8 +4,10 @@
 //! manifold is built once in the set-up with the default sampler (about 100 s on 2 cores).
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use pegtwin::method::manifold::build::{SamplerConfig, build, episode_seed, run_episode};
-use pegtwin::method::trial::{TrialConfig, run_trial};
+use pegtwin::method::config::TrialConfig;
+use pegtwin::method::manifold::build::{SamplerConfig, build, run_episode};
+use pegtwin::method::seeds;
+use pegtwin::method::trial::run_trial;
 use pegtwin::twin::cell::CellParams;
 use std::hint::black_box;
 
@@ -30,7 +32,7 @@ fn bench(c: &mut Criterion) {
     group.bench_function("sampling_episode_20s_cross_0.5mm", |b| {
         b.iter(|| {
             one_core.install(|| {
-                let episode = run_episode(&pair, &robot, &params, &sampler, episode_seed(1, 0));
+                let episode = run_episode(&pair, &robot, &params, &sampler, seeds::episode(1, 0));
                 black_box(episode.unwrap().poses.len())
             })
         })

@@ -1,5 +1,32 @@
 //! pegtwin: a digital twin for robotic peg-in-hole assembly of complex parts by contact-manifold
-//! pose estimation (Negi et al.). See README.md for the pipeline and the commands.
+//! pose estimation (Negi et al.). The README is the user's manual; `docs/architecture.md` says
+//! which file owns what.
+//!
+//! Three layers, each using only the ones above it in this list:
+//!
+//! - [`twin`]: what exists physically. Parts and meshes ([`twin::geometry`]), the robot model and
+//!   its URDF loader ([`twin::robot`]), the rapier world with exact convex contacts
+//!   ([`twin::physics`]), Sunrise-style impedance control ([`twin::control`]), joint-torque
+//!   sensing and the wrench estimate ([`twin::sensing`]), and the cell that steps them together
+//!   behind the real robot's ports ([`twin::cell`]); the physics self-checks
+//!   ([`twin::validate`], [`twin::diagnostics`]).
+//! - [`method`]: the paper's method, one file per stage of its Fig. 3.
+//!   - sample the manifold: [`method::primitives`] (the motions) driving
+//!     [`method::manifold::build`] (IV-B), stored by [`method::manifold::file`] and
+//!     [`method::manifold::cache`];
+//!   - observe: [`method::observe`] (IV-C), after [`method::search`] when starting above;
+//!   - register: [`method::register`] (IV-D, Algorithm 1 line by line);
+//!   - insert: [`method::insert`] (IV-E);
+//!   - one trial as the sequence of those stage calls: [`method::trial`] (V-A), with its settings
+//!     in [`method::config`], its random streams in [`method::seeds`], and the cell's ports in
+//!     [`method::session`].
+//! - [`campaign`]: many trials. Scenario files ([`campaign::scenario`]), parallel, sharded,
+//!   resumable runs ([`campaign::run`]), statistics and tables ([`campaign::summary`]), figures
+//!   and report.html ([`campaign::report`]), gain tuning ([`campaign::tune`]) and the regression
+//!   gate ([`campaign::check`]).
+//!
+//! Below all three: [`pose`] (6-D poses and SE(3)), [`error`], [`files`]. The command line lives in
+//! the binary (`src/main.rs`, `src/cli/`) and only parses, calls this library and prints.
 
 pub mod campaign;
 pub mod error;

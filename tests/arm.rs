@@ -8,7 +8,7 @@ use pegtwin::twin::robot::{GRAVITY_UPRIGHT, Iso, RobotModel};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
 use std::path::Path;
 
-/// Tool pointing down over the table (facts sheet 1.4, third vector).
+/// Tool pointing down over the table (docs/sources.md, 1: the third test vector).
 const TOOL_DOWN: [f64; 7] = [0.0, FRAC_PI_4, 0.0, -FRAC_PI_2, 0.0, FRAC_PI_4, 0.0];
 
 fn model(path: &str) -> RobotModel {

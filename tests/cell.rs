@@ -69,18 +69,17 @@ fn press_down(pair: &PartPair, start: Iso, travel_m: f64, params: &CellParams) -
     let mut worst: f64 = 0.0;
     for i in 0..4000 {
         let s = (i as f64 / 2000.0).min(1.0);
-        cell.controller
-            .set_cartesian_target(start * Iso::translation(0.0, 0.0, -travel_m * s));
+        cell.command_pose(start * Iso::translation(0.0, 0.0, -travel_m * s));
         cell.step();
         if i % 5 == 0 {
-            worst = worst.max(probe.max_penetration(&pair.peg, &cell.tcp_pose()));
+            worst = worst.max(probe.max_penetration(&pair.peg, &cell.truth().tcp_pose()));
         }
     }
     (cell, worst)
 }
 
 fn depth_m(cell: &Cell) -> f64 {
-    -(cell.base_t_hole.unwrap().inverse() * cell.tcp_pose())
+    -(cell.truth().base_t_hole().unwrap().inverse() * cell.truth().tcp_pose())
         .translation
         .z
 }
@@ -99,8 +98,8 @@ fn aligned_cross_goes_from_2_mm_to_full_depth_at_0_1_mm_and_the_press_is_estimat
     );
     assert!(worst <= 5e-6, "penetration {worst} m");
     // Static press on the floor: 2000 N/m x about 5 mm.
-    let truth = cell.true_contact_wrench();
-    let est = cell.sensors.wrench;
+    let truth = cell.truth().contact_wrench();
+    let est = cell.measurements().wrench;
     let f_true = truth.fixed_rows::<3>(0).into_owned();
     let f_est = est.fixed_rows::<3>(0).into_owned();
     assert!(f_true.z > 5.0, "pressing {f_true}");
@@ -109,7 +108,7 @@ fn aligned_cross_goes_from_2_mm_to_full_depth_at_0_1_mm_and_the_press_is_estimat
         (f_est - f_true).norm() < 1.0 + noise,
         "estimated {f_est} true {f_true}"
     );
-    assert!(cell.sensors.contact);
+    assert!(cell.measurements().contact);
 }
 
 #[test]
@@ -122,7 +121,7 @@ fn misaligned_cross_stalls_on_the_mouth() {
     let (cell, worst) = press_down(&pair, start, 0.01, &params);
     assert!(depth_m(&cell) < 0.1e-3, "depth {}", depth_m(&cell));
     assert!(worst <= 5e-6, "penetration {worst} m");
-    let f = cell.true_contact_wrench();
+    let f = cell.truth().contact_wrench();
     assert!(f.z > 10.0, "the rim carries the press: {f}");
 }
 
@@ -134,14 +133,13 @@ fn switching_to_joint_position_mode_holds_the_pose_without_a_torque_jump() {
     let start = tcp_in_hole(&hole, -0.05);
     let mut cell = free_cell(&pair, &params, &start, ImpedanceGains::default()).unwrap();
     cell.run(0.5);
-    let before = cell.tcp_pose();
-    let q = cell.q();
-    cell.controller
-        .set_mode(Mode::JointPosition {
-            gains: JointPositionGains::default(),
-            target: q,
-        })
-        .unwrap();
+    let before = cell.truth().tcp_pose();
+    let q = cell.truth().q();
+    cell.set_mode(Mode::JointPosition {
+        gains: JointPositionGains::default(),
+        target: q,
+    })
+    .unwrap();
     let mut last = cell.torques().clone();
     for _ in 0..500 {
         cell.step();
@@ -152,14 +150,13 @@ fn switching_to_joint_position_mode_holds_the_pose_without_a_torque_jump() {
         );
         last = cell.torques().clone();
     }
-    let moved = (cell.tcp_pose().translation.vector - before.translation.vector).norm();
+    let moved = (cell.truth().tcp_pose().translation.vector - before.translation.vector).norm();
     assert!(moved < 0.1e-3, "moved {moved} m");
     let bad = ImpedanceGains {
         stiffness: [2000.0, 2000.0, 9000.0, 200.0, 200.0, 200.0],
         ..Default::default()
     };
     let e = cell
-        .controller
         .set_mode(Mode::CartesianImpedance {
             gains: bad,
             target: before,
@@ -181,7 +178,7 @@ fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
     };
     let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
     cell.run(2.0);
-    let e = pegtwin::twin::control::tcp_error(&cell.tcp_pose(), &start);
+    let e = pegtwin::twin::control::tcp_error(&cell.truth().tcp_pose(), &start);
     assert!((e[2] - 0.005).abs() < 0.05e-3, "moved {e}");
     // A 6 N push along x with the spring force capped at 2 N: the TCP keeps yielding.
     let gains = ImpedanceGains {
@@ -190,18 +187,18 @@ fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
     };
     let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
     let x = start.rotation * nalgebra::Vector3::x();
-    cell.push = Some(nalgebra::Vector6::new(
+    cell.set_disturbance(Some(nalgebra::Vector6::new(
         6.0 * x.x,
         6.0 * x.y,
         6.0 * x.z,
         0.0,
         0.0,
         0.0,
-    ));
+    )));
     cell.run(0.5);
-    let early = pegtwin::twin::control::tcp_error(&cell.tcp_pose(), &start)[0];
+    let early = pegtwin::twin::control::tcp_error(&cell.truth().tcp_pose(), &start)[0];
     cell.run(0.5);
-    let late = pegtwin::twin::control::tcp_error(&cell.tcp_pose(), &start)[0];
+    let late = pegtwin::twin::control::tcp_error(&cell.truth().tcp_pose(), &start)[0];
     assert!(
         early > 0.01 && late > early + 0.01,
         "capped spring must yield: {early} then {late} m"
@@ -216,7 +213,9 @@ fn control_rate_is_independent_of_the_physics_step() {
     let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
     let mut cell = free_cell(&pair, &params, &start, ImpedanceGains::default()).unwrap();
     cell.run(1.0);
-    assert!((cell.tcp_pose().translation.vector - start.translation.vector).norm() < 0.05e-3);
+    assert!(
+        (cell.truth().tcp_pose().translation.vector - start.translation.vector).norm() < 0.05e-3
+    );
     params.controller.rate_hz = 300.0;
     let e = free_cell(&pair, &params, &start, ImpedanceGains::default())
         .err()

@@ -1,4 +1,4 @@
-//! The robot model against the facts sheet (../shared/notes/iiwa14-facts.md): forward kinematics
+//! The robot model against the facts sheet (docs/sources.md, 1 and 2): forward kinematics
 //! test vectors (section 1.4) and the DH table (1.3), the Jacobian against finite differences,
 //! gravity torques and effective masses (5.3), and the loader's rules and errors.
 

@@ -4,8 +4,9 @@
 
 mod common;
 use common::{pegtwin, stderr};
+use pegtwin::method::config::{Method, TrialConfig};
 use pegtwin::method::manifold::build::{SamplerConfig, build};
-use pegtwin::method::trial::{Method, TrialConfig, run_trial};
+use pegtwin::method::trial::run_trial;
 use pegtwin::twin::cell::CellParams;
 use std::path::{Path, PathBuf};
 
@@ -179,7 +180,7 @@ fn a_search_from_above_finds_the_offset_hole_and_inserts() {
     let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
     let config = TrialConfig {
         method: Method::Direct,
-        start: pegtwin::method::trial::Start::Above,
+        start: pegtwin::method::config::Start::Above,
         t_obs_s: 2.0,
         ..Default::default()
     };
@@ -194,7 +195,7 @@ fn a_search_from_above_finds_the_offset_hole_and_inserts() {
     )
     .unwrap();
     assert_eq!(r.stopped, None, "{:?}", r.stopped);
-    assert!(r.times.search_s > 0.0 && r.times.search_s < config.search_limit_s);
+    assert!(r.times.search_s > 0.0 && r.times.search_s < config.search.limit_s);
     assert!(
         r.final_depth_mm.is_some_and(|d| d > 5.0),
         "the peg went in: {:?} mm",

@@ -171,13 +171,13 @@ pub fn findings_table(findings: &[Finding]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::campaign::scenario::Cell;
+    use crate::campaign::scenario::Condition;
     use crate::campaign::summary::{MeanStd, wilson_interval};
-    use crate::method::trial::Method;
+    use crate::method::config::Method;
 
     fn cell(successes: usize, mae_x: f64, fz: f64) -> CellSummary {
         CellSummary {
-            cell: Cell {
+            cell: Condition {
                 geometry: "cross".into(),
                 clearance_mm: 0.5,
                 method: Method::Manifold,

@@ -1,4 +1,5 @@
-//! Campaigns.
+//! Campaigns: many trials of the method from a scenario file, their statistics, the paper's
+//! figures, gain tuning and the regression gate.
 
 pub mod check;
 pub mod report;

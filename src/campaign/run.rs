@@ -13,10 +13,13 @@
 //! (cell, trial) order once the run is complete. A kill can only cut the last line short;
 //! `--resume` drops that line, keeps the finished trials and runs the rest.
 
-use crate::campaign::scenario::{Cell, Scenario};
+use crate::campaign::scenario::{Condition, Scenario};
 use crate::error::{Error, Result};
-use crate::method::manifold::{Manifold, cache};
-use crate::method::trial::{Method, TrialResult, run_trial};
+use crate::method::config::Method;
+use crate::method::manifold::Manifold;
+use crate::method::manifold::cache::{self, BuildProgress};
+use crate::method::seeds;
+use crate::method::trial::{TrialResult, run_trial};
 use crate::twin::geometry::{self, PartPair};
 use crate::twin::robot::RobotModel;
 use rayon::prelude::*;
@@ -93,19 +96,9 @@ pub struct TrialSpec {
     pub seed: u64,
 }
 
-/// The seed of trial `index` of a geometry and clearance (SplitMix64 over the inputs).
-pub fn trial_seed(scenario_seed: u64, cell: &Cell, index: usize) -> u64 {
-    let pair = crc32fast::hash(format!("{}/{}", cell.geometry, cell.clearance_mm).as_bytes());
-    let mut z = scenario_seed
-        ^ (u64::from(pair) << 32)
-        ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    for _ in 0..2 {
-        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-    }
-    z
+/// The seed of trial `index` of a cell (see [`seeds::trial`]: the same for every method of a pair).
+pub fn trial_seed(scenario_seed: u64, cell: &Condition, index: usize) -> u64 {
+    seeds::trial(scenario_seed, &cell.geometry, cell.clearance_mm, index)
 }
 
 /// Every trial of the scenario in cell-major order.
@@ -134,10 +127,23 @@ pub fn shard_trials(scenario: &Scenario, shard: Shard) -> Vec<TrialSpec> {
         .collect()
 }
 
-/// Where a campaign's manifolds are cached and whether to show progress.
-pub struct RunOptions {
+/// What a campaign reports while it runs, for a progress display (the library prints nothing).
+pub trait CampaignProgress: BuildProgress {
+    /// `total` trials are wanted, `done` of them were already there.
+    fn trials_started(&self, _total: usize, _done: usize) {}
+    /// One more trial finished.
+    fn trial_done(&self) {}
+    /// The trials finished (or the run failed).
+    fn trials_finished(&self) {}
+}
+
+/// No progress display.
+impl CampaignProgress for () {}
+
+/// Where a campaign's manifolds are cached and whom to tell how it goes.
+pub struct RunOptions<'a> {
     pub cache_dir: PathBuf,
-    pub progress: bool,
+    pub progress: &'a dyn CampaignProgress,
 }
 
 /// The pairs, the robot and the reference manifolds the given trials need.
@@ -147,7 +153,7 @@ pub struct Prepared {
     manifolds: BTreeMap<(String, u64), Manifold>,
 }
 
-fn pair_key(cell: &Cell) -> (String, u64) {
+fn pair_key(cell: &Condition) -> (String, u64) {
     (cell.geometry.clone(), cell.clearance_mm.to_bits())
 }
 
@@ -160,13 +166,6 @@ pub fn prepare(
     let robot = crate::twin::robot::urdf::iiwa14()?;
     let cells = scenario.cells();
     let params = scenario.cell_params();
-    let sampler = scenario.manifold.sampler();
-    let recipe = cache::Recipe {
-        sampler: &sampler,
-        points: scenario.manifold.points,
-        seed: scenario.manifold.seed,
-        params: &params,
-    };
     let mut pairs = BTreeMap::new();
     let mut manifolds = BTreeMap::new();
     for spec in trials {
@@ -180,11 +179,12 @@ pub fn prepare(
             );
         }
         if cell.method == Method::Manifold && !manifolds.contains_key(&key) {
-            let m = cache::load_or_build(
+            let m = cache::resolve(
                 &pairs[&key],
                 &robot,
-                &recipe,
-                &options.cache_dir,
+                &scenario.manifold,
+                &params,
+                Some(&options.cache_dir),
                 options.progress,
             )?;
             manifolds.insert(key, m);
@@ -278,7 +278,7 @@ pub fn campaign(
         .open(&trials_path)
         .map_err(|e| Error::file(&trials_path, format!("cannot open for appending: {e}")))?;
     let writer = Mutex::new(file);
-    let bar = progress_bar(wanted.len(), done.len(), run.progress);
+    run.progress.trials_started(wanted.len(), done.len());
     let append = |record: &TrialRecord| -> Result<()> {
         let mut line = serde_json::to_string(record).expect("record serialises");
         line.push('\n');
@@ -286,11 +286,12 @@ pub fn campaign(
         f.write_all(line.as_bytes())
             .and_then(|_| f.flush())
             .map_err(|e| Error::file(&trials_path, format!("cannot append: {e}")))?;
-        bar.inc(1);
+        run.progress.trial_done();
         Ok(())
     };
-    run_trials(scenario, &prepared, &pending, &append)?;
-    bar.finish_and_clear();
+    let ran = run_trials(scenario, &prepared, &pending, &append);
+    run.progress.trials_finished();
+    ran?;
     let mut records = read_records(&trials_path, false)?;
     sort_and_check_complete(&mut records, &wanted, &trials_path)?;
     write_records(&trials_path, &records)?;
@@ -298,22 +299,6 @@ pub fn campaign(
         records,
         ran: pending.len(),
     })
-}
-
-fn progress_bar(total: usize, done: usize, shown: bool) -> indicatif::ProgressBar {
-    if !shown {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(total as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} trials, {elapsed} elapsed, ETA {eta}",
-        )
-        .expect("valid template"),
-    );
-    bar.set_position(done as u64);
-    bar.reset_eta();
-    bar
 }
 
 /// Creates the folder or checks that it holds this campaign (and that `resume` was asked for

@@ -9,9 +9,9 @@
 //! N m/rad on roll, pitch, yaw, in the TCP frame). The fields are listed in the README.
 
 use crate::error::{Error, Result};
-use crate::method::manifold::build::SamplerConfig;
+use crate::method::config::{Method, Start, TrialConfig};
+use crate::method::manifold::cache::ManifoldSpec;
 use crate::method::register::RegistrationConfig;
-use crate::method::trial::{Method, Start, TrialConfig};
 use crate::twin::cell::CellParams;
 use crate::twin::control::ImpedanceGains;
 use crate::twin::geometry;
@@ -79,43 +79,6 @@ fn default_offset() -> f64 {
 }
 fn default_success() -> f64 {
     2.0
-}
-
-/// How the reference manifolds are made (built once per geometry and clearance, then cached).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ManifoldSpec {
-    /// Points kept after downsampling.
-    pub points: usize,
-    /// Sampling episodes.
-    pub episodes: usize,
-    /// Simulated time per episode, s.
-    pub episode_s: f64,
-    /// Seed of the sampling.
-    pub seed: u64,
-}
-
-impl Default for ManifoldSpec {
-    fn default() -> Self {
-        let s = SamplerConfig::default();
-        ManifoldSpec {
-            points: 50_000,
-            episodes: s.episodes,
-            episode_s: s.episode_s,
-            seed: 1,
-        }
-    }
-}
-
-impl ManifoldSpec {
-    /// The sampler this spec asks for.
-    pub fn sampler(&self) -> SamplerConfig {
-        SamplerConfig {
-            episodes: self.episodes,
-            episode_s: self.episode_s,
-            ..SamplerConfig::default()
-        }
-    }
 }
 
 /// Gain overrides of the three online phases.
@@ -186,16 +149,17 @@ pub struct PhysicsOverride {
     pub friction: Option<f64>,
 }
 
-/// One cell of the experiment: the trials that share geometry, clearance, method and t_obs.
+/// One condition of the experiment, a cell of its table (named `Condition` so as not to be
+/// confused with the robot cell): the trials that share geometry, clearance, method and t_obs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Cell {
+pub struct Condition {
     pub geometry: String,
     pub clearance_mm: f64,
     pub method: Method,
     pub t_obs_s: f64,
 }
 
-impl Cell {
+impl Condition {
     /// A short label, e.g. `cross 0.5 mm manifold 6 s`.
     pub fn label(&self) -> String {
         let m = match self.method {
@@ -229,12 +193,12 @@ impl Scenario {
                 .unwrap_or_default();
             Error::Input(format!("{line}{}", e.message()))
         })?;
-        scenario.validate()?;
+        scenario.ensure_valid()?;
         Ok(scenario)
     }
 
     /// Checks every field, naming the first that is wrong.
-    pub fn validate(&self) -> Result<()> {
+    pub fn ensure_valid(&self) -> Result<()> {
         let bad = |field: &str, v: String, expected: &str| {
             Err(Error::Input(format!("{field} = {v}: expected {expected}")))
         };
@@ -289,13 +253,13 @@ impl Scenario {
             ("insert", &self.gains.insert, &d.insert_gains),
         ] {
             o.apply(base)
-                .validate()
+                .ensure_valid()
                 .map_err(|e| Error::Input(format!("gains.{phase}: {e}")))?;
         }
         let params = self.cell_params();
         params
             .sensors
-            .validate()
+            .ensure_valid()
             .map_err(|e| Error::Input(format!("sensors: {e}")))?;
         let p = &params.physics;
         if !(p.dt_s > 0.0 && p.dt_s <= 2e-3) {
@@ -324,7 +288,7 @@ impl Scenario {
         }
         for cell in self.cells() {
             self.trial_config(&cell)
-                .validate()
+                .ensure_valid()
                 .map_err(|e| Error::Input(format!("{}: {e}", cell.label())))?;
         }
         Ok(())
@@ -332,7 +296,7 @@ impl Scenario {
 
     /// The cells in their fixed order: geometry, clearance, then the manifold method at each
     /// t_obs, then the direct baseline.
-    pub fn cells(&self) -> Vec<Cell> {
+    pub fn cells(&self) -> Vec<Condition> {
         let mut cells = Vec::new();
         for g in &self.geometries {
             for &c in &self.clearances_mm {
@@ -345,7 +309,7 @@ impl Scenario {
                         Method::Direct => vec![self.direct_t_obs_s],
                     };
                     for t in times {
-                        cells.push(Cell {
+                        cells.push(Condition {
                             geometry: g.clone(),
                             clearance_mm: c,
                             method,
@@ -359,7 +323,7 @@ impl Scenario {
     }
 
     /// The trial configuration of a cell.
-    pub fn trial_config(&self, cell: &Cell) -> TrialConfig {
+    pub fn trial_config(&self, cell: &Condition) -> TrialConfig {
         let d = TrialConfig::default();
         let (m, a) = (self.offset_mm * 1e-3, self.offset_deg.to_radians());
         TrialConfig {

@@ -11,8 +11,8 @@
 //! - mean simulated time per phase.
 
 use crate::campaign::run::TrialRecord;
-use crate::campaign::scenario::{Cell, Scenario};
-use crate::method::trial::Method;
+use crate::campaign::scenario::{Condition, Scenario};
+use crate::method::config::Method;
 use serde::{Deserialize, Serialize};
 
 /// z of the two-sided 95 % normal quantile.
@@ -61,7 +61,7 @@ pub const AXES: [&str; 6] = ["x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "y
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CellSummary {
     #[serde(flatten)]
-    pub cell: Cell,
+    pub cell: Condition,
     pub trials: usize,
     pub successes: usize,
     pub sim_faults: usize,
@@ -140,7 +140,7 @@ fn pooled(scenario: &Scenario, records: &[TrialRecord]) -> Vec<CellSummary> {
                 .iter()
                 .filter(|r| cells[r.cell].method == method && cells[r.cell].t_obs_s == t_obs_s)
                 .collect();
-            let cell = Cell {
+            let cell = Condition {
                 geometry: "all".into(),
                 clearance_mm: clearance,
                 method,
@@ -151,7 +151,7 @@ fn pooled(scenario: &Scenario, records: &[TrialRecord]) -> Vec<CellSummary> {
         .collect()
 }
 
-fn summarise_cell(cell: Cell, rs: &[&TrialRecord]) -> CellSummary {
+fn summarise_cell(cell: Condition, rs: &[&TrialRecord]) -> CellSummary {
     let n = rs.len();
     let successes = rs.iter().filter(|r| r.result.success).count();
     let errors: Vec<[f64; 6]> = rs.iter().filter_map(|r| abs_errors(r)).collect();

@@ -65,6 +65,16 @@ pub struct TuneOptions {
     pub seed: u64,
 }
 
+impl Default for TuneOptions {
+    fn default() -> Self {
+        TuneOptions {
+            candidates: 27,
+            first_trials: 2,
+            seed: 1,
+        }
+    }
+}
+
 /// `[lo, hi]` at `u` in [0, 1], log-uniform.
 fn log_lerp(lo: f64, hi: f64, u: f64) -> f64 {
     (lo.ln() + u * (hi.ln() - lo.ln())).exp()
@@ -192,7 +202,7 @@ fn evaluate(
 ) -> Result<Evaluation> {
     let mut s = candidate.apply(scenario);
     s.trials = trials_per_cell;
-    s.validate()?;
+    s.ensure_valid()?;
     let specs = all_trials(&s);
     let records: Vec<TrialRecord> = run_trials(&s, prepared, &specs, &|_| Ok(()))?;
     let successes = records.iter().filter(|r| r.result.success).count();
@@ -315,7 +325,7 @@ mod tests {
         for c in candidates(20, 1) {
             let base = "name = \"t\"\ntrials = 1\ngeometries = [\"cross\"]\nclearances_mm = [0.5]\nt_obs_s = [6.0]\nmethods = [\"manifold\"]\n";
             let s = c.apply(&Scenario::parse(base).unwrap());
-            s.validate().unwrap();
+            s.ensure_valid().unwrap();
             let snippet = Scenario::parse(&format!("{base}{}", c.snippet())).unwrap();
             assert_eq!(snippet.gains.insert.stiffness.unwrap()[2], 2000.0);
         }

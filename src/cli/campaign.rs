@@ -1,5 +1,6 @@
 //! `pegtwin campaign`, `merge`, `check` and `tune`.
 
+use super::progress::Bars;
 use clap::Args;
 use pegtwin::campaign::check::{Baseline, compare, findings_table};
 use pegtwin::campaign::run::{self as campaign, CampaignOptions, RunOptions, Shard};
@@ -8,7 +9,6 @@ use pegtwin::campaign::tune::{TuneOptions, tune};
 use pegtwin::campaign::{report, summary};
 use pegtwin::error::{Error, Result};
 use pegtwin::method::manifold::cache;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -64,13 +64,13 @@ pub struct TuneArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Candidates of the first rung (Latin hypercube).
-    #[arg(long, default_value_t = 27)]
+    #[arg(long, default_value_t = TuneOptions::default().candidates)]
     pub candidates: usize,
     /// Trials per cell at the first rung (times 3 per rung).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = TuneOptions::default().first_trials)]
     pub first_trials: usize,
     /// Seed of the design.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = TuneOptions::default().seed)]
     pub seed: u64,
     /// Worker threads (default: all cores).
     #[arg(long)]
@@ -90,13 +90,13 @@ fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
         .map_err(|e| Error::Input(format!("cannot start the worker threads: {e}")))
 }
 
-fn run_options(cache_dir: &Option<PathBuf>) -> Result<RunOptions> {
+fn run_options<'a>(cache_dir: &Option<PathBuf>, bars: &'a Bars) -> Result<RunOptions<'a>> {
     Ok(RunOptions {
         cache_dir: match cache_dir {
             Some(d) => d.clone(),
             None => cache::default_dir()?,
         },
-        progress: std::io::stderr().is_terminal(),
+        progress: bars,
     })
 }
 
@@ -106,7 +106,8 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
         Some(s) => Shard::parse(s)?,
         None => Shard::WHOLE,
     };
-    let run = run_options(&args.cache_dir)?;
+    let bars = Bars::on_terminal();
+    let run = run_options(&args.cache_dir, &bars)?;
     let started = Instant::now();
     let options = CampaignOptions {
         shard,
@@ -205,7 +206,8 @@ pub fn check_command(args: CheckArgs) -> Result<i32> {
 
 pub fn tune_command(args: TuneArgs) -> Result<i32> {
     let scenario = Scenario::load(&args.scenario)?;
-    let run = run_options(&args.cache_dir)?;
+    let bars = Bars::on_terminal();
+    let run = run_options(&args.cache_dir, &bars)?;
     campaign::ensure_new_or_empty(&args.out, "tune writes into new folders only")?;
     let options = TuneOptions {
         candidates: args.candidates,

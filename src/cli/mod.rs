@@ -1,15 +1,18 @@
 //! The command line: parses, calls the library, prints. Flags that people type take millimetres
 //! and degrees and say so in their names.
 
+use choices::UnitsArg;
 use clap::{Args, Parser, Subcommand};
 use pegtwin::error::{Error, Result};
-use pegtwin::twin::geometry::mesh::{MeshUnits, load_solid};
+use pegtwin::twin::geometry::mesh::load_pair;
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
 use pegtwin::twin::physics::PhysicsParams;
 use pegtwin::twin::validate::{FreePegGains, ValidationReport, validate};
 use std::path::PathBuf;
 
 mod campaign;
+mod choices;
+mod progress;
 mod registration;
 mod robot;
 mod trial;
@@ -106,7 +109,7 @@ pub struct PairArgs {
     pub hole_mesh: Option<PathBuf>,
     /// Length unit of the mesh files.
     #[arg(long, value_enum, default_value = "m")]
-    pub mesh_units: MeshUnits,
+    pub mesh_units: UnitsArg,
     /// Cavity depth of a mesh hole, mouth to floor, mm.
     #[arg(long)]
     pub depth_mm: Option<f64>,
@@ -137,20 +140,13 @@ impl PairArgs {
                         "--depth-mm {depth_mm}: expected the cavity depth of the mesh hole, more than 0 mm"
                     )));
                 }
-                let half_gap = clearance_m / 2.0;
-                let peg = load_solid(peg_path, self.mesh_units, half_gap)?;
-                let hole = load_solid(hole_path, self.mesh_units, half_gap)?;
-                for w in peg.warnings.iter().chain(&hole.warnings) {
+                let units = self.mesh_units.into();
+                let (pair, warnings) =
+                    load_pair(peg_path, hole_path, units, clearance_m, depth_mm * 1e-3)?;
+                for w in warnings {
                     eprintln!("warning: {w}");
                 }
-                Ok(PartPair {
-                    name: format!("{} in {}", peg_path.display(), hole_path.display()),
-                    clearance_m,
-                    chord_error_m: 0.0,
-                    peg: peg.solid,
-                    hole: hole.solid,
-                    cavity_depth_m: depth_mm * 1e-3,
-                })
+                Ok(pair)
             }
             _ => Err(Error::Input(
                 "give --geometry NAME, or both --peg-mesh and --hole-mesh".into(),

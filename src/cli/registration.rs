@@ -1,14 +1,15 @@
 //! `pegtwin manifold ...` and `pegtwin register`: manifold files and Algorithm 1 from the command
 //! line.
 
+use super::choices::SolverArg;
 use clap::{Args, Subcommand, ValueEnum};
 use pegtwin::error::{Error, Result};
-use pegtwin::method::manifold::build::SamplerConfig;
+use pegtwin::method::manifold::cache::ManifoldSpec;
 use pegtwin::method::manifold::file::{self, read_csv};
 use pegtwin::method::manifold::synthetic::SyntheticPair;
 use pegtwin::method::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
 use pegtwin::method::register::{
-    DEFAULT_RESTARTS, DEFAULT_SIGMA_DEG, Registration, RegistrationConfig, Solver, register,
+    DEFAULT_RESTARTS, DEFAULT_SIGMA_DEG, Registration, RegistrationConfig, register,
 };
 use pegtwin::pose::{Pose6, PoseMetric};
 use std::path::{Path, PathBuf};
@@ -58,7 +59,7 @@ pub enum ManifoldAction {
 #[derive(Args)]
 pub struct MetricArgs {
     /// One degree counts like this many millimetres in the 6-D distance.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = PoseMetric::default().mm_per_deg)]
     pub mm_per_deg: f64,
     /// Neighbours per normal.
     #[arg(long, default_value_t = DEFAULT_NORMAL_K)]
@@ -130,28 +131,28 @@ pub struct RegisterArgs {
     #[arg(long, default_value_t = DEFAULT_RESTARTS)]
     pub restarts: usize,
     /// Maximum iterations per restart (N).
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = RegistrationConfig::default().iterations)]
     pub iterations: usize,
     /// Seed of the restarts' initial poses.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = RegistrationConfig::default().seed)]
     pub seed: u64,
     /// Update rule: the paper's (Algorithm 1) or least squares on the same residuals.
     #[arg(long, value_enum, default_value = "least-squares")]
-    pub solver: Solver,
+    pub solver: SolverArg,
     /// Standard deviation of the restarts' initial translation, mm per axis.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = RegistrationConfig::default().sigma_m * 1e3)]
     pub sigma_mm: f64,
     /// Standard deviation of the restarts' initial rotation, deg per axis.
     #[arg(long, default_value_t = DEFAULT_SIGMA_DEG)]
     pub sigma_deg: f64,
     /// Stop a restart when its update is smaller than this, mm-equivalents.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = RegistrationConfig::default().tolerance_mm)]
     pub tolerance_mm: f64,
     /// Observations per observation normal.
     #[arg(long, default_value_t = DEFAULT_NORMAL_K)]
     pub k: usize,
     /// For a CSV manifold: one degree counts like this many millimetres.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = PoseMetric::default().mm_per_deg)]
     pub mm_per_deg: f64,
     /// Print the full result as JSON (per-restart results, iterations, residuals, times).
     #[arg(long)]
@@ -249,15 +250,15 @@ pub struct BuildArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Poses kept after downsampling (the paper found 1e4-1e5 best).
-    #[arg(long, default_value_t = 50_000)]
+    #[arg(long, default_value_t = ManifoldSpec::default().points)]
     pub points: usize,
     /// Independent sampling episodes (simulations run in parallel).
-    #[arg(long, default_value_t = SamplerConfig::default().episodes)]
+    #[arg(long, default_value_t = ManifoldSpec::default().episodes)]
     pub episodes: usize,
     /// Simulated seconds per episode.
-    #[arg(long, default_value_t = SamplerConfig::default().episode_s)]
+    #[arg(long, default_value_t = ManifoldSpec::default().episode_s)]
     pub episode_s: f64,
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = ManifoldSpec::default().seed)]
     pub seed: u64,
     /// No progress bar.
     #[arg(long)]
@@ -272,11 +273,12 @@ fn build(args: BuildArgs) -> Result<()> {
         clearance_m,
     )?;
     let robot = pegtwin::twin::robot::urdf::iiwa14()?;
-    let config = SamplerConfig {
+    let config = ManifoldSpec {
         episodes: args.episodes,
         episode_s: args.episode_s,
         ..Default::default()
-    };
+    }
+    .sampler();
     let bar = indicatif::ProgressBar::new(config.episodes as u64);
     if args.quiet {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
@@ -424,7 +426,7 @@ fn print_info(path: &Path, m: &Manifold, json: bool) {
 pub fn register_command(args: RegisterArgs) -> Result<i32> {
     let init = parse_pose("--init", &args.init)?;
     let cfg = RegistrationConfig {
-        solver: args.solver,
+        solver: args.solver.into(),
         iterations: args.iterations,
         tolerance_mm: args.tolerance_mm,
         restarts: args.restarts,
@@ -434,7 +436,7 @@ pub fn register_command(args: RegisterArgs) -> Result<i32> {
         seed: args.seed,
         ..Default::default()
     };
-    cfg.check()?;
+    cfg.ensure_valid()?;
     let metric = MetricArgs {
         mm_per_deg: args.mm_per_deg,
         k: args.k,

@@ -123,19 +123,19 @@ pub struct StiffnessArgs {
     #[command(flatten)]
     pub robot: RobotArgs,
     /// Translational stiffness on every axis, N/m (Sunrise: 0-5000).
-    #[arg(long, default_value_t = 2000.0)]
+    #[arg(long, default_value_t = ImpedanceGains::default().stiffness[0])]
     pub stiffness_n_per_m: f64,
     /// Rotational stiffness on every axis, N m/rad (Sunrise: 0-300).
-    #[arg(long, default_value_t = 200.0)]
+    #[arg(long, default_value_t = ImpedanceGains::default().stiffness[3])]
     pub rot_stiffness_nm_per_rad: f64,
     /// Damping ratio on every axis (Sunrise: 0.1-1.0).
-    #[arg(long, default_value_t = 0.7)]
+    #[arg(long, default_value_t = ImpedanceGains::default().damping_ratio[0])]
     pub damping_ratio: f64,
     /// Push on the translational axes, N.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = PushTest::default().force_n)]
     pub force_n: f64,
     /// Push on the rotational axes, N m.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = PushTest::default().torque_nm)]
     pub torque_nm: f64,
     /// Peg carried on the flange (built-in name).
     #[arg(long, default_value = "cross")]
@@ -260,7 +260,7 @@ fn stiffness_command(args: &StiffnessArgs) -> Result<i32> {
         args.rot_stiffness_nm_per_rad,
         args.damping_ratio,
     );
-    gains.validate()?;
+    gains.ensure_valid()?;
     for (flag, v) in [("--force-n", args.force_n), ("--torque-nm", args.torque_nm)] {
         if !pegtwin::twin::control::is_positive(v) {
             return Err(Error::Input(format!(

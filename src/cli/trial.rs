@@ -1,16 +1,24 @@
 //! `pegtwin trial`: one online trial, the manifold method or the direct baseline.
 
+use super::choices::{MethodArg, StartArg};
+use super::progress::Bars;
 use clap::Args;
-use pegtwin::campaign::scenario::ManifoldSpec;
 use pegtwin::error::{Error, Result};
+use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::Manifold;
-use pegtwin::method::manifold::{cache, file};
-use pegtwin::method::trial::{
-    Method, Start, TrialConfig, TrialResult, check_manifold, run_trial, trace_csv,
-};
+use pegtwin::method::manifold::cache::{self, ManifoldSpec};
+use pegtwin::method::manifold::file;
+use pegtwin::method::session::trace_csv;
+use pegtwin::method::trial::{TrialResult, run_trial};
 use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::geometry::{self, PartPair};
 use std::path::PathBuf;
+
+/// The library's default offset half-ranges, mm and deg (the paper's U(-5, 5)).
+fn default_offsets() -> (f64, f64) {
+    let r = TrialConfig::default().offset_range;
+    (r[0] * 1e3, r[3].to_degrees())
+}
 
 #[derive(Args)]
 pub struct TrialArgs {
@@ -21,21 +29,21 @@ pub struct TrialArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub clearance_mm: f64,
     /// Observation time, s.
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = TrialConfig::default().t_obs_s, allow_negative_numbers = true)]
     pub t_obs: f64,
     #[arg(long, value_enum, default_value = "manifold")]
-    pub method: Method,
+    pub method: MethodArg,
     /// Start partially inserted (the paper's set-up) or above the hole with a spiral search.
     #[arg(long, value_enum, default_value = "partial")]
-    pub start: Start,
+    pub start: StartArg,
     /// Trial seed: draws the hole offset and seeds every noise source.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Half-range of the hole's position offset, mm (U(-r, r) on x, y, z).
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = default_offsets().0, allow_negative_numbers = true)]
     pub offset_mm: f64,
     /// Half-range of the hole's orientation offset, deg (U(-r, r) on roll, pitch, yaw).
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = default_offsets().1, allow_negative_numbers = true)]
     pub offset_deg: f64,
     /// Reference manifold file (default: the cache, built on demand).
     #[arg(long)]
@@ -67,18 +75,18 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
     }
     let (m, a) = (args.offset_mm * 1e-3, args.offset_deg.to_radians());
     let config = TrialConfig {
-        method: args.method,
-        start: args.start,
+        method: args.method.into(),
+        start: args.start.into(),
         t_obs_s: args.t_obs,
         offset_range: [m, m, m, a, a, a],
         ..Default::default()
     };
-    config.validate()?;
+    config.ensure_valid()?;
     let robot = pegtwin::twin::robot::urdf::iiwa14()?;
     let params = CellParams::default();
     let manifold = match args.method {
-        Method::Manifold => Some(reference_manifold(&args, &pair, &robot, &params)?),
-        Method::Direct => None,
+        MethodArg::Manifold => Some(reference_manifold(&args, &pair, &robot, &params)?),
+        MethodArg::Direct => None,
     };
     let mut trace = args.trace.as_ref().map(|_| Vec::new());
     let result = run_trial(
@@ -113,22 +121,12 @@ fn reference_manifold(
 ) -> Result<Manifold> {
     if let Some(path) = &args.manifold {
         let m = file::load(path)?;
-        check_manifold(&m, pair, path)?;
+        m.check_made_for(pair, path)?;
         return Ok(m);
     }
-    let dir = match &args.cache_dir {
-        Some(d) => d.clone(),
-        None => cache::default_dir()?,
-    };
     let spec = ManifoldSpec::default();
-    let sampler = spec.sampler();
-    let recipe = cache::Recipe {
-        sampler: &sampler,
-        points: spec.points,
-        seed: spec.seed,
-        params,
-    };
-    cache::load_or_build(pair, robot, &recipe, &dir, true)
+    let dir = args.cache_dir.as_deref();
+    cache::resolve(pair, robot, &spec, params, dir, &Bars::new(true))
 }
 
 fn print_result(r: &TrialResult) {

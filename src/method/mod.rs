@@ -1,6 +1,16 @@
-//! The paper's method.
+//! The paper's method (Section IV, Fig. 3), one file per stage: sample the reference manifold
+//! ([`primitives`], [`manifold`]), observe ([`observe`], after [`search`] when starting above),
+//! register ([`register`], Algorithm 1), insert ([`insert`]); [`trial`] runs them in order.
+//! Every stage drives the cell through a [`session::Session`], which lends it the real robot's
+//! ports and nothing of the simulation's truth.
 
+pub mod config;
+pub mod insert;
 pub mod manifold;
+pub mod observe;
 pub mod primitives;
 pub mod register;
+pub mod search;
+pub mod seeds;
+pub mod session;
 pub mod trial;

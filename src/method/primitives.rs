@@ -9,12 +9,15 @@
 //! beyond the free play on purpose: under a compliant impedance the excess becomes a contact force
 //! (stiffness x overtravel), which is what the contact detector feels.
 
-use crate::pose::Pose6;
+use crate::method::session::Session;
+use crate::pose::{Iso, Pose6};
+use crate::twin::cell::Measurements;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
+use std::ops::ControlFlow;
 
 /// Archimedean spiral `r = pitch * theta / 2 pi`, travelled at constant speed out to the maximum
 /// radius and back to the centre, over and over.
@@ -245,6 +248,69 @@ impl SamplingMotion {
             pitch + noise[4],
             yaw + noise[5],
         ])
+    }
+}
+
+/// The amplitude scale of a drive: `before` until `switch_s`, then `after` (the two phases of
+/// the observation, paper IV-C; one constant scale for the manifold sampler).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScaleSchedule {
+    pub before: f64,
+    pub after: f64,
+    /// Time of the switch from the start of the drive, s.
+    pub switch_s: f64,
+}
+
+impl ScaleSchedule {
+    /// One scale throughout.
+    pub fn constant(scale: f64) -> Self {
+        ScaleSchedule {
+            before: scale,
+            after: scale,
+            switch_s: f64::INFINITY,
+        }
+    }
+}
+
+/// One run of the sampling motion (paper IV-B, IV-C) for `duration_s` in the hole frame the robot
+/// believes in, `base_t_hole`: at every physics step the target is `base_t_hole *
+/// motion.target(t)` with the perturbation's next value. Both the offline sampler of the reference
+/// manifold and the online observation drive their primitives through [`Drive::run`].
+pub struct Drive<'a> {
+    pub base_t_hole: Iso,
+    pub motion: &'a SamplingMotion,
+    pub schedule: ScaleSchedule,
+    /// Diametral clearance the amplitudes are scheduled for, m.
+    pub clearance_m: f64,
+    pub duration_s: f64,
+}
+
+impl Drive<'_> {
+    /// Runs the motion on `session` with the perturbation `noise`; `on_step` sees the
+    /// measurements after every step. Stops when the physics faults or `on_step` breaks.
+    pub fn run(
+        &self,
+        session: &mut Session,
+        noise: &mut PerturbationState,
+        mut on_step: impl FnMut(&Measurements) -> ControlFlow<()>,
+    ) {
+        let dt = session.dt_s();
+        let mut motion = self.motion.clone();
+        let steps = (self.duration_s / dt).round() as usize;
+        for k in 0..steps {
+            let t = k as f64 * dt;
+            motion.scale = if t < self.schedule.switch_s {
+                self.schedule.before
+            } else {
+                self.schedule.after
+            };
+            let n = noise.step(dt);
+            session
+                .command_pose(self.base_t_hole * motion.target(t, self.clearance_m, &n).to_iso());
+            if !session.step() || on_step(&session.measurements()).is_break() {
+                return;
+            }
+        }
     }
 }
 

@@ -75,7 +75,7 @@ use std::time::Instant;
 pub const MAD_FLOOR_MM: f64 = 0.01;
 
 /// Which update rule each iteration uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Solver {
     /// Algorithm 1's update: SE(3) mean of the symmetric point-to-plane misalignments.
@@ -150,7 +150,7 @@ impl Default for RegistrationConfig {
 
 impl RegistrationConfig {
     /// Reject values that cannot work, naming the field.
-    pub fn check(&self) -> Result<()> {
+    pub fn ensure_valid(&self) -> Result<()> {
         let bad = |field: &str, expected: &str| {
             Err(Error::Input(format!(
                 "registration {field}: expected {expected}"
@@ -224,7 +224,7 @@ pub fn register(
     init: &Pose6,
     cfg: &RegistrationConfig,
 ) -> Result<Registration> {
-    cfg.check()?;
+    cfg.ensure_valid()?;
     check_observations(observations, cfg.normal_k)?;
     if !init.is_finite() {
         return Err(Error::Input(format!(

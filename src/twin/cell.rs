@@ -22,7 +22,7 @@ use nalgebra::{DVector, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rapier3d::prelude::{ColliderBuilder, ColliderHandle, PhysicsWorld};
 use serde::{Deserialize, Serialize};
 
-/// A joint configuration with the tool pointing down in front of the robot (facts sheet 1.4).
+/// A joint configuration with the tool pointing down in front of the robot (docs/sources.md, 1).
 pub const TOOL_DOWN_Q: [f64; 7] = [
     0.0,
     std::f64::consts::FRAC_PI_4,
@@ -36,7 +36,7 @@ pub const TOOL_DOWN_Q: [f64; 7] = [
 /// Solver iterations (substeps) of the arm cell. rapier rebuilds the multibody's mass matrix in
 /// every substep; two substeps instead of the free peg's four make the arm cell 1.35 x faster,
 /// and the cell's tests hold with them (insertion at 0.1 mm with at most 5 um penetration, stall
-/// when misaligned, the press estimate within 1 N), as the rapier notes found for the arm.
+/// when misaligned, the press estimate within 1 N), as measured for the arm (docs/robot.md).
 pub const ARM_SOLVER_ITERATIONS: usize = 2;
 
 /// Cell layout and the parameters of everything in it.
@@ -93,16 +93,20 @@ pub fn tcp_in_hole(base_t_hole: &Iso, depth_m: f64) -> Iso {
     base_t_hole * Iso::translation(0.0, 0.0, -depth_m)
 }
 
-/// The simulated cell.
+/// The simulated cell, seen through its ports as the real cell is (as Drake's systems are):
+/// commands in ([`Cell::command_pose`], [`Cell::switch_gains`], [`Cell::set_mode`]),
+/// [`Measurements`] out. The ground truth (true pose, true contact wrench, joint state) is behind
+/// [`Cell::truth`], for scoring, validation and traces only; the method never holds a `Cell` (it
+/// drives a `method::session::Session`, which lends it the ports alone).
 pub struct Cell {
-    pub world: PhysicsWorld,
-    pub arm: Arm,
+    world: PhysicsWorld,
+    arm: Arm,
     /// The robot model with the peg as its tool.
-    pub model: RobotModel,
-    pub controller: Controller,
-    pub sensors: Sensors,
+    model: RobotModel,
+    controller: Controller,
+    sensors: Sensors,
     /// True hole pose, base frame (`None`: no fixture, free space).
-    pub base_t_hole: Option<Iso>,
+    base_t_hole: Option<Iso>,
     peg: ColliderHandle,
     peg_reach_m: f64,
     steps_per_cycle: usize,
@@ -116,13 +120,59 @@ pub struct Cell {
     /// Joint velocities after the last physics step, rad/s.
     qd: Vec<f64>,
     /// An external wrench pushed onto the TCP (base frame, torque about the TCP), for diagnostics.
-    pub push: Option<Wrench6>,
+    disturbance: Option<Wrench6>,
     /// Joint positions as the encoders read them at the last control cycle, rad.
     q_measured: Vec<f64>,
     /// Exact penetration check of the peg against the fixture (fault detection).
     probe: Option<(PenetrationProbe, crate::twin::geometry::solid::Solid)>,
     /// Largest exact penetration before the physics counts as blown up, m.
     penetration_fault_m: f64,
+}
+
+/// What the robot reports, as of its last control cycle: the only inputs of the method.
+#[derive(Clone, Copy, Debug)]
+pub struct Measurements {
+    /// Simulated time, s.
+    pub time_s: f64,
+    /// TCP pose from the encoder readings (forward kinematics), base frame.
+    pub tcp: Iso,
+    /// Estimated external wrench at the TCP from the joint torque sensors (base frame, torque
+    /// about the TCP), N and N m.
+    pub wrench: Wrench6,
+    /// The estimator's contact flag (with hysteresis).
+    pub contact: bool,
+}
+
+/// The simulation's ground truth: for scoring, validating the physics and traces, never an input
+/// of the method.
+pub struct Truth<'a> {
+    cell: &'a Cell,
+}
+
+impl Truth<'_> {
+    /// True joint positions, rad.
+    pub fn q(&self) -> Vec<f64> {
+        self.cell.arm.q(&self.cell.world)
+    }
+
+    /// True TCP pose, base frame.
+    pub fn tcp_pose(&self) -> Iso {
+        self.cell.true_tcp_pose()
+    }
+
+    /// True hole pose, base frame (`None`: no fixture).
+    pub fn base_t_hole(&self) -> Option<Iso> {
+        self.cell.base_t_hole
+    }
+
+    /// True contact wrench on the peg from the physics (base frame, torque about the TCP).
+    pub fn contact_wrench(&self) -> Wrench6 {
+        let tcp = self.tcp_pose().translation.vector;
+        let w = contact_wrench(&self.cell.world, self.cell.peg, tcp);
+        let r = self.cell.arm.world_t_base.rotation.inverse();
+        let (f, t) = (r * w.force, r * w.torque);
+        Vector6::new(f.x, f.y, f.z, t.x, t.y, t.z)
+    }
 }
 
 /// Why a simulation stopped being trustworthy.
@@ -227,7 +277,7 @@ impl Cell {
             tau: DVector::zeros(n),
             tau_link: DVector::zeros(n),
             qd: vec![0.0; n],
-            push: None,
+            disturbance: None,
             q_measured: q0.clone(),
             probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
             penetration_fault_m: pair.clearance_m.max(0.1e-3),
@@ -258,8 +308,8 @@ impl Cell {
         }
         let dt = self.dt_s;
         self.arm.apply_torques(&mut self.world, self.tau.as_slice());
-        if let Some(w) = self.push {
-            self.apply_push(&w);
+        if let Some(w) = self.disturbance {
+            self.apply_disturbance(&w);
         }
         let speed = max_point_speed(&self.world, self.arm.last_body(), self.peg_reach_m);
         set_prediction_for_speed(&mut self.world, speed);
@@ -297,8 +347,8 @@ impl Cell {
         self.tau = self.controller.update(&d, &q_meas, &self.qd);
     }
 
-    fn apply_push(&mut self, w: &Wrench6) {
-        let tcp = self.tcp_pose();
+    fn apply_disturbance(&mut self, w: &Wrench6) {
+        let tcp = self.true_tcp_pose();
         let body = &mut self.world.bodies[self.arm.last_body()];
         let at = crate::twin::physics::v32(&tcp.translation.vector);
         body.add_force_at_point(
@@ -317,15 +367,56 @@ impl Cell {
         &self.tau
     }
 
-    /// True joint positions, rad.
-    pub fn q(&self) -> Vec<f64> {
-        self.arm.q(&self.world)
+    /// What the robot reports now (see [`Measurements`]).
+    pub fn measurements(&self) -> Measurements {
+        Measurements {
+            time_s: self.time_s(),
+            tcp: self.model.tcp_pose(&self.q_measured),
+            wrench: self.sensors.wrench,
+            contact: self.sensors.contact,
+        }
     }
 
-    /// The TCP pose the robot reports: forward kinematics of the encoder readings at the last
-    /// control cycle (base frame).
-    pub fn measured_tcp_pose(&self) -> Iso {
-        self.model.tcp_pose(&self.q_measured)
+    /// The ground truth (see [`Truth`]).
+    pub fn truth(&self) -> Truth<'_> {
+        Truth { cell: self }
+    }
+
+    /// The robot model, with the peg as its tool.
+    pub fn model(&self) -> &RobotModel {
+        &self.model
+    }
+
+    /// The controller's mode (gains and target).
+    pub fn mode(&self) -> &Mode {
+        self.controller.mode()
+    }
+
+    /// Commands a new control mode (checked as the controller checks it).
+    pub fn set_mode(&mut self, mode: Mode) -> Result<()> {
+        self.controller.set_mode(mode)
+    }
+
+    /// Commands the Cartesian impedance target `base_T_tcp`.
+    pub fn command_pose(&mut self, target: Iso) {
+        self.controller.set_cartesian_target(target);
+    }
+
+    /// New impedance gains, keeping the current target (a Sunrise mode switch); from joint
+    /// position mode, the target is where the robot measures itself.
+    pub fn switch_gains(&mut self, gains: ImpedanceGains) -> Result<()> {
+        let target = match self.controller.mode() {
+            Mode::CartesianImpedance { target, .. } => *target,
+            Mode::JointPosition { .. } => self.measurements().tcp,
+        };
+        self.controller
+            .set_mode(Mode::CartesianImpedance { gains, target })
+    }
+
+    /// Pushes `wrench` onto the TCP from now on (base frame, torque about the TCP; `None`
+    /// stops): an external disturbance for diagnostics and tests.
+    pub fn set_disturbance(&mut self, wrench: Option<Wrench6>) {
+        self.disturbance = wrench;
     }
 
     /// A reason to stop trusting the physics, if there is one: non-finite joint state, a joint
@@ -338,7 +429,7 @@ impl Cell {
                 reason,
             })
         };
-        let q = self.q();
+        let q = self.arm.q(&self.world);
         let qd = &self.qd;
         if q.iter().chain(qd).any(|v| !v.is_finite()) {
             return fault("joint state is not finite (NaN or infinite)".into());
@@ -354,7 +445,7 @@ impl Cell {
         if let Some((probe, peg)) = &self.probe
             && self.steps.is_multiple_of(PENETRATION_CHECK_STEPS)
         {
-            let depth = probe.max_penetration(peg, &self.tcp_pose());
+            let depth = probe.max_penetration(peg, &self.true_tcp_pose());
             if depth > self.penetration_fault_m {
                 return fault(format!(
                     "penetration {:.3} mm beyond the bound {:.3} mm",
@@ -366,19 +457,8 @@ impl Cell {
         None
     }
 
-    /// True TCP pose, base frame.
-    pub fn tcp_pose(&self) -> Iso {
-        self.model.tcp_pose(&self.q())
-    }
-
-    /// True contact wrench on the peg from the physics (base frame, torque about the TCP): for
-    /// validating the estimate, never used by the method.
-    pub fn true_contact_wrench(&self) -> Wrench6 {
-        let tcp = self.tcp_pose().translation.vector;
-        let w = contact_wrench(&self.world, self.peg, tcp);
-        let r = self.arm.world_t_base.rotation.inverse();
-        let (f, t) = (r * w.force, r * w.torque);
-        Vector6::new(f.x, f.y, f.z, t.x, t.y, t.z)
+    fn true_tcp_pose(&self) -> Iso {
+        self.model.tcp_pose(&self.arm.q(&self.world))
     }
 }
 

@@ -1,9 +1,9 @@
-//! Torque-level controllers with KUKA Sunrise semantics (facts sheet section 4.1 and 5).
+//! Torque-level controllers with KUKA Sunrise semantics (docs/sources.md, 4.1 and 5).
 //!
 //! **Cartesian impedance** (`CartesianImpedanceControlMode`): per-axis stiffness (0-5000 N/m,
 //! 0-300 N m/rad) and damping ratio (0.1-1.0), both in the TCP frame, as Sunrise parametrises
 //! `CartDOF.X..C`. The damping ratio becomes a damping matrix through the Cartesian inertia
-//! Lambda(q) by the factorisation design of Albu-Schaeffer et al. (ICRA 2003, facts sheet 5.2):
+//! Lambda(q) by the factorisation design of Albu-Schaeffer et al. (ICRA 2003; docs/sources.md, 5.2):
 //! `D = Lambda^1/2 Xi K^1/2 + K^1/2 Xi Lambda^1/2`, so that 0.7 means 0.7 of critical damping of
 //! the real arm, not of a unit mass. The spring-damper wrench is clamped per axis to the max
 //! control force; an additional (feed-forward) wrench is added after the clamp. A null-space
@@ -23,7 +23,7 @@ use crate::twin::robot::{Dynamics, GRAVITY_UPRIGHT, Iso, RobotModel};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, SymmetricEigen, Vector6};
 use serde::{Deserialize, Serialize};
 
-/// Sunrise ranges (facts sheet 4.1).
+/// Sunrise ranges (docs/sources.md, 4.1).
 pub const TRANSLATIONAL_STIFFNESS_RANGE: (f64, f64) = (0.0, 5000.0);
 pub const ROTATIONAL_STIFFNESS_RANGE: (f64, f64) = (0.0, 300.0);
 pub const DAMPING_RATIO_RANGE: (f64, f64) = (0.1, 1.0);
@@ -80,7 +80,7 @@ impl ImpedanceGains {
     }
 
     /// Rejects values outside the Sunrise ranges, naming the parameter, axis and range.
-    pub fn validate(&self) -> Result<()> {
+    pub fn ensure_valid(&self) -> Result<()> {
         for (i, &k) in self.stiffness.iter().enumerate() {
             let (lo, hi) = if i < 3 {
                 TRANSLATIONAL_STIFFNESS_RANGE
@@ -192,7 +192,7 @@ pub struct ControllerParams {
 }
 
 impl Default for ControllerParams {
-    /// 1 kHz, 1 N m per cycle (franka_ros's Delta-tau_max, facts sheet 5.1), upright base.
+    /// 1 kHz, 1 N m per cycle (franka_ros's Delta-tau_max, docs/sources.md, 5.1), upright base.
     fn default() -> Self {
         ControllerParams {
             rate_hz: 1000.0,
@@ -288,7 +288,7 @@ impl Controller {
 
 fn check_mode(mode: &Mode) -> Result<()> {
     match mode {
-        Mode::CartesianImpedance { gains, .. } => gains.validate(),
+        Mode::CartesianImpedance { gains, .. } => gains.ensure_valid(),
         Mode::JointPosition { gains, .. } => {
             if !(gains.stiffness > 0.0 && gains.damping_ratio > 0.0) {
                 return Err(Error::Input(format!(
@@ -395,18 +395,23 @@ mod tests {
     fn gains_outside_the_sunrise_ranges_are_rejected_by_name() {
         let mut g = ImpedanceGains::default();
         g.stiffness[2] = 6000.0;
-        let e = g.validate().unwrap_err().to_string();
+        let e = g.ensure_valid().unwrap_err().to_string();
         assert!(
             e.contains("stiffness z") && e.contains("6000") && e.contains("[0, 5000]"),
             "{e}"
         );
         let mut g = ImpedanceGains::default();
         g.stiffness[4] = 350.0;
-        assert!(g.validate().unwrap_err().to_string().contains("[0, 300]"));
+        assert!(
+            g.ensure_valid()
+                .unwrap_err()
+                .to_string()
+                .contains("[0, 300]")
+        );
         let mut g = ImpedanceGains::default();
         g.damping_ratio[0] = 0.05;
         assert!(
-            g.validate()
+            g.ensure_valid()
                 .unwrap_err()
                 .to_string()
                 .contains("damping ratio x")
@@ -416,7 +421,7 @@ mod tests {
             ..Default::default()
         };
         assert!(
-            g.validate()
+            g.ensure_valid()
                 .unwrap_err()
                 .to_string()
                 .contains("null-space damping")
@@ -426,14 +431,14 @@ mod tests {
             ..Default::default()
         };
         assert!(
-            g.validate()
+            g.ensure_valid()
                 .unwrap_err()
                 .to_string()
                 .contains("max control force z")
         );
-        ImpedanceGains::default().validate().unwrap();
+        ImpedanceGains::default().ensure_valid().unwrap();
         ImpedanceGains::uniform(5000.0, 300.0, 1.0)
-            .validate()
+            .ensure_valid()
             .unwrap();
     }
 

@@ -59,14 +59,14 @@ pub fn measure_stiffness(
     gains: &ImpedanceGains,
     test: PushTest,
 ) -> Result<Vec<AxisStiffness>> {
-    gains.validate()?;
+    gains.ensure_valid()?;
     let start = tcp_in_hole(&nominal_hole_pose(pair, params), -0.1);
     (0..6)
         .into_par_iter()
         .map(|axis| {
             let mut cell = Cell::new(pair, robot.clone(), params, None, &start, gains.clone(), 1)?;
             cell.run(test.settle_s);
-            let before = cell.tcp_pose();
+            let before = cell.truth().tcp_pose();
             let magnitude = if axis < 3 {
                 test.force_n
             } else {
@@ -77,9 +77,9 @@ pub fn measure_stiffness(
             let r = before.rotation;
             let f = r * w_tcp.fixed_rows::<3>(0).into_owned();
             let t = r * w_tcp.fixed_rows::<3>(3).into_owned();
-            cell.push = Some(Vector6::new(f.x, f.y, f.z, t.x, t.y, t.z));
+            cell.set_disturbance(Some(Vector6::new(f.x, f.y, f.z, t.x, t.y, t.z)));
             cell.run(test.settle_s);
-            let deflection = tcp_error(&cell.tcp_pose(), &before)[axis];
+            let deflection = tcp_error(&cell.truth().tcp_pose(), &before)[axis];
             let measured = magnitude / deflection;
             let commanded = gains.stiffness[axis];
             Ok(AxisStiffness {

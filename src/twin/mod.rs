@@ -1,4 +1,6 @@
-//! The twin: what exists physically.
+//! The twin: what exists physically — the parts, the robot, the physics world, the controller,
+//! the sensors and the cell that steps them together — and the checks of its physics. Nothing
+//! here knows the paper's method.
 
 pub mod cell;
 pub mod control;

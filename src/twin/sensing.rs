@@ -1,4 +1,4 @@
-//! Sensing like the real robot (facts sheet 4.4): encoders, joint torque sensors, and the external
+//! Sensing like the real robot (docs/sources.md, 4.4): encoders, joint torque sensors, and the external
 //! wrench at the TCP estimated from joint torques minus model torques.
 //!
 //! - **Joint positions**: the true angle quantised to the encoder resolution, plus Gaussian noise.
@@ -40,7 +40,7 @@ pub struct SensorParams {
     /// Joint torque sensor white noise (standard deviation), N m (default 0.05; assumption).
     pub torque_noise_nm: f64,
     /// Random-walk rate of the torque sensors' bias, N m per square-root second
-    /// (default 0.01; assumption: the estimate is known to drift, facts sheet 4.4).
+    /// (default 0.01; assumption: the estimate is known to drift, docs/sources.md, 4.4).
     pub torque_bias_walk_nm: f64,
     /// Momentum-observer gain (bandwidth), 1/s.
     pub observer_gain_per_s: f64,
@@ -82,7 +82,7 @@ impl SensorParams {
     }
 
     /// Rejects non-physical values, naming the field.
-    pub fn validate(&self) -> Result<()> {
+    pub fn ensure_valid(&self) -> Result<()> {
         let non_negative = [
             ("encoder_resolution_rad", self.encoder_resolution_rad),
             ("encoder_noise_rad", self.encoder_noise_rad),
@@ -139,7 +139,7 @@ pub struct Sensors {
 
 impl Sensors {
     pub fn new(params: SensorParams, dof: usize, seed: u64) -> Result<Self> {
-        params.validate()?;
+        params.ensure_valid()?;
         Ok(Sensors {
             params,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -248,7 +248,7 @@ mod tests {
             ..Default::default()
         };
         assert!(
-            p.validate()
+            p.ensure_valid()
                 .unwrap_err()
                 .to_string()
                 .contains("contact_off_n")
@@ -258,7 +258,7 @@ mod tests {
             ..Default::default()
         };
         assert!(
-            p.validate()
+            p.ensure_valid()
                 .unwrap_err()
                 .to_string()
                 .contains("torque_noise_nm")

@@ -15,8 +15,11 @@
 use super::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
 use crate::error::{Error, Result};
 use crate::method::primitives::{
-    AmplitudeSchedule, Descent, Perturbation, PerturbationState, SamplingMotion,
+    AmplitudeSchedule, Descent, Drive, Perturbation, PerturbationState, SamplingMotion,
+    ScaleSchedule,
 };
+use crate::method::seeds;
+use crate::method::session::{Phase, Session};
 use crate::pose::{Pose6, PoseMetric};
 use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
 use crate::twin::control::ImpedanceGains;
@@ -27,6 +30,7 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::ops::ControlFlow;
 
 /// Everything the generator does, stored in the manifold's metadata.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -83,7 +87,7 @@ impl Default for SamplerConfig {
 
 impl SamplerConfig {
     /// Rejects values that cannot make a manifold, naming the field.
-    pub fn validate(&self) -> Result<()> {
+    pub fn ensure_valid(&self) -> Result<()> {
         if self.episodes == 0 {
             return Err(Error::Input("episodes is 0: expected at least 1".into()));
         }
@@ -93,7 +97,7 @@ impl SamplerConfig {
                 self.episode_s
             )));
         }
-        self.gains.validate()
+        self.gains.ensure_valid()
     }
 }
 
@@ -133,44 +137,37 @@ pub fn run_episode(
     motion.phase_s = rand::Rng::random_range(&mut rng, 0.0..1000.0);
     let mut noise =
         PerturbationState::new(motion.perturbation.clone(), rand::Rng::random(&mut rng));
-    let dt = params.physics.dt_s;
+    let drive = Drive {
+        base_t_hole: hole,
+        motion: &motion,
+        schedule: ScaleSchedule::constant(motion.scale),
+        clearance_m: pair.clearance_m,
+        duration_s: config.episode_s,
+    };
     let hole_inv = hole.inverse();
     let mut poses = Vec::new();
-    let steps = (config.episode_s / dt).round() as usize;
-    for _ in 0..steps {
-        let t = cell.time_s();
-        let n = noise.step(dt);
-        let target = hole * motion.target(t, pair.clearance_m, &n).to_iso();
-        cell.controller.set_cartesian_target(target);
-        cell.step();
-        if let Some(fault) = cell.fault() {
-            return Ok(Episode {
-                poses: Vec::new(),
-                fault: Some(fault),
-            });
+    let mut session = Session::new(&mut cell, None, Phase::Sample);
+    drive.run(&mut session, &mut noise, |m| {
+        if !m.contact {
+            return ControlFlow::Continue(());
         }
-        if !cell.sensors.contact {
-            continue;
-        }
-        let pose = Pose6::from_iso(&(hole_inv * cell.measured_tcp_pose()));
+        let pose = Pose6::from_iso(&(hole_inv * m.tcp));
         // The engagement only: the tip below the mouth. A peg levered out of the hole does not
         // find its way back; the episode ends there.
         if pose.0[2] < 0.0 {
             poses.push(pose);
         } else if pose.0[2] > LEFT_HOLE_M {
-            break;
+            return ControlFlow::Break(());
         }
-    }
-    Ok(Episode { poses, fault: None })
-}
-
-/// Per-episode seed from the build seed (SplitMix64 of the pair, so that episodes are independent
-/// streams whatever the thread count).
-pub fn episode_seed(seed: u64, episode: usize) -> u64 {
-    let mut z = seed.wrapping_add((episode as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+        ControlFlow::Continue(())
+    });
+    Ok(match session.fault() {
+        Some(fault) => Episode {
+            poses: Vec::new(),
+            fault: Some(fault.clone()),
+        },
+        None => Episode { poses, fault: None },
+    })
 }
 
 /// Voxel-grid downsampling to `n` poses in the scaled space of `metric` (see the module doc).
@@ -259,7 +256,7 @@ pub fn build(
     seed: u64,
     on_episode: &(dyn Fn() + Sync),
 ) -> Result<BuildReport> {
-    config.validate()?;
+    config.ensure_valid()?;
     if points < DEFAULT_NORMAL_K + 1 {
         return Err(Error::Input(format!(
             "--points {points}: expected at least {} (the normal neighbourhood)",
@@ -269,7 +266,7 @@ pub fn build(
     let episodes: Vec<Episode> = (0..config.episodes)
         .into_par_iter()
         .map(|e| {
-            let out = run_episode(pair, robot, params, config, episode_seed(seed, e));
+            let out = run_episode(pair, robot, params, config, seeds::episode(seed, e));
             on_episode();
             out
         })
@@ -350,16 +347,5 @@ mod tests {
             kept.iter().all(|k| points.contains(k)),
             "keeps real samples"
         );
-    }
-
-    #[test]
-    fn episode_seeds_differ_and_are_stable() {
-        let a: Vec<u64> = (0..100).map(|e| episode_seed(5, e)).collect();
-        let mut sorted = a.clone();
-        sorted.sort_unstable();
-        sorted.dedup();
-        assert_eq!(sorted.len(), 100);
-        assert_eq!(a[3], episode_seed(5, 3));
-        assert_ne!(episode_seed(5, 3), episode_seed(6, 3));
     }
 }

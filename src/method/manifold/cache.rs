@@ -1,5 +1,6 @@
 //! The on-disk cache of reference manifolds: built once per pair and generator settings, reused
-//! by every trial and campaign (`$XDG_CACHE_HOME/pegtwin`, else `~/.cache/pegtwin`).
+//! by every trial and campaign (`$XDG_CACHE_HOME/pegtwin`, else `~/.cache/pegtwin`). This is the
+//! one place that resolves a pair's reference manifold from a [`ManifoldSpec`].
 //!
 //! A cached file is named `{geometry}-{clearance}mm-{key}.manifold`, where `key` is a checksum of
 //! everything that decides its content (sampler, points, seed, cell and physics parameters), so a
@@ -10,11 +11,48 @@ use super::Manifold;
 use super::build::{SamplerConfig, build};
 use super::file;
 use crate::error::{Error, Result};
-use crate::method::trial::check_manifold;
 use crate::twin::cell::CellParams;
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+/// How the reference manifolds are made (built once per geometry and clearance, then cached).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ManifoldSpec {
+    /// Points kept after downsampling.
+    pub points: usize,
+    /// Sampling episodes.
+    pub episodes: usize,
+    /// Simulated time per episode, s.
+    pub episode_s: f64,
+    /// Seed of the sampling.
+    pub seed: u64,
+}
+
+impl Default for ManifoldSpec {
+    fn default() -> Self {
+        let s = SamplerConfig::default();
+        ManifoldSpec {
+            points: 50_000,
+            episodes: s.episodes,
+            episode_s: s.episode_s,
+            seed: 1,
+        }
+    }
+}
+
+impl ManifoldSpec {
+    /// The sampler this spec asks for.
+    pub fn sampler(&self) -> SamplerConfig {
+        SamplerConfig {
+            episodes: self.episodes,
+            episode_s: self.episode_s,
+            ..SamplerConfig::default()
+        }
+    }
+}
 
 /// What a reference manifold is made from.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -33,6 +71,19 @@ impl Recipe<'_> {
         format!("{:08x}", crc32fast::hash(json.as_bytes()))
     }
 }
+
+/// What a build reports while it runs, for a progress display (the library prints nothing).
+pub trait BuildProgress: Sync {
+    /// The manifold of `pair` is about to be built into `path`, in `episodes` episodes.
+    fn build_started(&self, _pair: &PartPair, _path: &Path, _episodes: usize) {}
+    /// One sampling episode finished.
+    fn episode_done(&self) {}
+    /// The build finished (or failed).
+    fn build_finished(&self) {}
+}
+
+/// No progress display.
+impl BuildProgress for () {}
 
 /// The default cache folder.
 pub fn default_dir() -> Result<PathBuf> {
@@ -56,35 +107,47 @@ pub fn path(dir: &Path, pair: &PartPair, recipe: &Recipe) -> PathBuf {
     ))
 }
 
-/// The cached manifold of `pair`, built and cached first when missing. `progress` shows a bar.
+/// The reference manifold of `pair` made as `spec` says with the cell `params`, from the cache
+/// folder `dir` (the default folder when `None`), built and cached first when missing.
+pub fn resolve(
+    pair: &PartPair,
+    robot: &RobotModel,
+    spec: &ManifoldSpec,
+    params: &CellParams,
+    dir: Option<&Path>,
+    progress: &dyn BuildProgress,
+) -> Result<Manifold> {
+    let dir = match dir {
+        Some(d) => d.to_path_buf(),
+        None => default_dir()?,
+    };
+    let sampler = spec.sampler();
+    let recipe = Recipe {
+        sampler: &sampler,
+        points: spec.points,
+        seed: spec.seed,
+        params,
+    };
+    load_or_build(pair, robot, &recipe, &dir, progress)
+}
+
+/// The cached manifold of `pair`, built and cached first when missing.
 pub fn load_or_build(
     pair: &PartPair,
     robot: &RobotModel,
     recipe: &Recipe,
     dir: &Path,
-    progress: bool,
+    progress: &dyn BuildProgress,
 ) -> Result<Manifold> {
     let path = path(dir, pair, recipe);
     if path.is_file() {
         let m = file::load(&path)?;
-        check_manifold(&m, pair, &path)?;
+        m.check_made_for(pair, &path)?;
         return Ok(m);
     }
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::file(dir, format!("cannot create the cache folder: {e}")))?;
-    if progress {
-        eprintln!(
-            "building the reference manifold of {} at {} mm into {} (once)",
-            pair.name,
-            pair.clearance_m * 1e3,
-            path.display()
-        );
-    }
-    let bar = if progress {
-        indicatif::ProgressBar::new(recipe.sampler.episodes as u64)
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
+    progress.build_started(pair, &path, recipe.sampler.episodes);
     let report = build(
         pair,
         robot,
@@ -92,9 +155,10 @@ pub fn load_or_build(
         recipe.sampler,
         recipe.points,
         recipe.seed,
-        &|| bar.inc(1),
-    )?;
-    bar.finish_and_clear();
+        &|| progress.episode_done(),
+    );
+    progress.build_finished();
+    let report = report?;
     file::save(&report.manifold, &path)?;
     Ok(report.manifold)
 }

@@ -17,6 +17,7 @@ pub mod synthetic;
 
 use crate::error::{Error, Result};
 use crate::pose::{Iso, Pose6, PoseMetric};
+use crate::twin::geometry::PartPair;
 use kiddo::SquaredEuclidean;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use nalgebra::{Matrix6, SymmetricEigen, Vector6};
@@ -342,6 +343,31 @@ fn coarse_subset(scaled: &[[f64; 6]]) -> Option<Subset> {
 }
 
 impl Manifold {
+    /// Checks that this reference manifold was made for `pair` (same geometry, same clearance);
+    /// `source` names the file in the error.
+    pub fn check_made_for(&self, pair: &PartPair, source: &std::path::Path) -> Result<()> {
+        let same_clearance = self
+            .meta
+            .clearance_m
+            .is_some_and(|c| (c - pair.clearance_m).abs() < 1e-9);
+        if self.meta.geometry == pair.name && same_clearance {
+            return Ok(());
+        }
+        let made_at = self
+            .meta
+            .clearance_m
+            .map_or("unknown".into(), |c| format!("{}", c * 1e3));
+        Err(Error::file(
+            source,
+            format!(
+                "this manifold was made for geometry '{}' at {made_at} mm clearance; the trial asks for '{}' at {} mm",
+                self.meta.geometry,
+                pair.name,
+                pair.clearance_m * 1e3
+            ),
+        ))
+    }
+
     /// A manifold from poses; normals are computed with `meta.normal_k` neighbours.
     pub fn from_points(points: Vec<Pose6>, meta: ManifoldMeta) -> Result<Self> {
         Self::build(points, None, meta)

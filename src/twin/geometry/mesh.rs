@@ -1,6 +1,7 @@
 //! Meshes in and out: the watertight boundary of built-in solids, STL export in millimetres,
 //! and STL/OBJ import (a folder of convex parts, or one non-convex mesh decomposed by V-HACD).
 
+use super::PartPair;
 use super::planar::{P2, Region, triangulate};
 use super::solid::{BoundaryMesh, ConvexPiece, P3, Solid};
 use crate::error::{Error, Result};
@@ -105,7 +106,7 @@ impl BoundaryMesh {
 }
 
 /// Length unit of a mesh file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MeshUnits {
     Mm,
     M,
@@ -246,6 +247,32 @@ pub struct LoadedSolid {
     /// Largest deviation between the collision pieces and the input surface, metres.
     pub max_deviation_m: f64,
     pub warnings: Vec<String>,
+}
+
+/// A peg/hole pair from mesh files (see [`load_solid`]): the peg in the peg frame (tip centre
+/// at the origin, z up the peg), the hole in the hole frame (mouth centre at the origin, z out of
+/// the hole), made with diametral clearance `clearance_m`, the cavity `cavity_depth_m` deep.
+/// Returns the pair and the loaders' warnings.
+pub fn load_pair(
+    peg_path: &Path,
+    hole_path: &Path,
+    units: MeshUnits,
+    clearance_m: f64,
+    cavity_depth_m: f64,
+) -> Result<(PartPair, Vec<String>)> {
+    let half_gap = clearance_m / 2.0;
+    let peg = load_solid(peg_path, units, half_gap)?;
+    let hole = load_solid(hole_path, units, half_gap)?;
+    let warnings = peg.warnings.into_iter().chain(hole.warnings).collect();
+    let pair = PartPair {
+        name: format!("{} in {}", peg_path.display(), hole_path.display()),
+        clearance_m,
+        chord_error_m: 0.0,
+        peg: peg.solid,
+        hole: hole.solid,
+        cavity_depth_m,
+    };
+    Ok((pair, warnings))
 }
 
 /// Loads a solid from a folder of convex parts (one STL/OBJ file each, the usual CoACD or V-HACD

@@ -22,7 +22,7 @@
 //! Everything runs in a fixed order (candidates sorted by piece indices), so results do not
 //! depend on anything but the inputs.
 
-use super::contact::sat_manifold;
+use super::sat::sat_manifold;
 use rapier3d::parry::bounding_volume::{Aabb, BoundingVolume};
 use rapier3d::parry::math::{Pose, Real, Rotation, Vector};
 use rapier3d::parry::query::details::{TypedWorkspaceData, WorkspaceData};
@@ -394,96 +394,4 @@ fn leaf_radius(cache: &mut Vec<Real>, c: &dyn CompositeShape, leaf: u32) -> Real
         });
     }
     cache[i]
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::twin::geometry::{Builtin, build_builtin};
-    use crate::twin::physics::contact::ExactConvexDispatcher;
-    use crate::twin::physics::{compound_collider, pose32};
-    use nalgebra::{Isometry3, Vector3};
-    use rapier3d::parry::query::details::contact_manifolds_composite_shape_composite_shape;
-
-    type Manifolds = Vec<ContactManifold<(), ()>>;
-
-    /// The pieces in contact and their points (bit patterns), sorted.
-    fn contacts(manifolds: &Manifolds) -> Vec<(u32, u32, Vec<[u32; 4]>)> {
-        let mut out: Vec<_> = manifolds
-            .iter()
-            .filter(|m| !m.points.is_empty())
-            .map(|m| {
-                let points = m
-                    .points
-                    .iter()
-                    .map(|p| {
-                        let q = p.local_p1;
-                        [
-                            q.x.to_bits(),
-                            q.y.to_bits(),
-                            q.z.to_bits(),
-                            p.dist.to_bits(),
-                        ]
-                    })
-                    .collect();
-                (m.subshape1, m.subshape2, points)
-            })
-            .collect();
-        out.sort();
-        out
-    }
-
-    /// The gear peg sliding and rocking against the walls of its hole at 0.5 mm: at every step
-    /// every contact manifold of parry's compound query (run with the same SAT) is found, with
-    /// the same points to the bit, though most sub-pairs are skipped.
-    #[test]
-    fn skipping_never_loses_a_contact() {
-        let pair = build_builtin(Builtin::Gear, 0.5e-3).expect("gear builds");
-        let hole = compound_collider(&pair.hole, 0.3).build();
-        let peg = compound_collider(&pair.peg, 0.3).build();
-        let c_hole = hole.shape().as_composite_shape().expect("compound");
-        let c_peg = peg.shape().as_composite_shape().expect("compound");
-        let prediction = 30e-6;
-        let (mut ours, mut ours_ws): (Manifolds, _) = (Vec::new(), None);
-        let (mut parrys, mut parrys_ws): (Manifolds, _) = (Vec::new(), None);
-        let steps = 600;
-        let mut touching_steps = 0;
-        for step in 0..steps {
-            let t = step as f64 / steps as f64;
-            let phase = std::f64::consts::TAU * 3.0 * t;
-            // Side gap 0.25 mm: the offset swells to 0.27 mm and back, circling, with a rocking
-            // tilt; the peg is free, then pressed into the walls and sliding on them.
-            let offset = 0.27e-3 * (0.5 * phase).sin().powi(2);
-            let peg_in_hole = Isometry3::new(
-                Vector3::new(offset * phase.cos(), offset * phase.sin(), -2e-3 - 6e-3 * t),
-                Vector3::new(0.2f64.to_radians() * phase.sin(), 0.0, 0.3 * t),
-            );
-            let pos12 = pose32(&peg_in_hole);
-            compound_manifolds(&pos12, c_hole, c_peg, prediction, &mut ours, &mut ours_ws);
-            contact_manifolds_composite_shape_composite_shape(
-                &ExactConvexDispatcher,
-                &pos12,
-                c_hole,
-                c_peg,
-                prediction,
-                &mut parrys,
-                &mut parrys_ws,
-            );
-            let (mine, expected) = (contacts(&ours), contacts(&parrys));
-            for m in &expected {
-                assert!(mine.contains(m), "step {step}: lost {m:?}");
-            }
-            // parry's box test may drop a pair whose SAT separation is within the prediction
-            // distance but whose boxes are not: such a pair is apart, never touching.
-            for m in mine.iter().filter(|m| !expected.contains(m)) {
-                let apart = m.2.iter().all(|p| f32::from_bits(p[3]) > 0.0);
-                assert!(apart, "step {step}: extra touching {m:?}");
-            }
-            touching_steps += usize::from(!expected.is_empty());
-        }
-        assert!(
-            touching_steps > steps / 4 && touching_steps < steps,
-            "the path should touch and leave the walls: {touching_steps} of {steps} steps"
-        );
-    }
 }

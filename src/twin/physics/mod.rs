@@ -1,7 +1,7 @@
 //! The physics world: one place that builds rapier with integration parameters validated for
 //! sub-millimetre clearance, puts solids in it, and reads the contact wrench on a body.
 //!
-//! Parameters (see `../shared/notes/rapier-at-submillimetre.md`, re-measured by `pegtwin validate`):
+//! Parameters (measured and explained in docs/physics.md; re-measured by `pegtwin validate`):
 //! contact recycling off (stale contacts let a peg tunnel or jam falsely in a tight hole),
 //! contact clustering off (clustered impulses over-report the force), `length_unit` 0.01 m, contact
 //! softness 240 Hz (the default 30/60 Hz lets a peg sink into a rim it cannot enter), 1 ms step,
@@ -11,8 +11,9 @@
 
 pub mod arm;
 pub mod compound;
-pub mod contact;
+pub mod dispatcher;
 pub mod penetration;
+pub mod sat;
 
 use crate::twin::geometry::solid::Solid;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -70,7 +71,7 @@ impl PhysicsParams {
     /// An empty world with gravity -9.81 m/s^2 along z.
     pub fn new_world(&self) -> PhysicsWorld {
         let mut world = PhysicsWorld::new();
-        world.narrow_phase = NarrowPhase::with_query_dispatcher(contact::ExactConvexDispatcher);
+        world.narrow_phase = NarrowPhase::with_query_dispatcher(dispatcher::ExactConvexDispatcher);
         world.gravity = Vector::new(0.0, 0.0, -9.81);
         world.integration_parameters = self.integration_parameters();
         world

@@ -169,10 +169,10 @@ pub struct RobotModel {
     pub tool: Option<Tool>,
 }
 
-/// Default reflected rotor inertia, kg m^2 per joint. KUKA publishes none (facts sheet 2.3);
+/// Default reflected rotor inertia, kg m^2 per joint. KUKA publishes none (docs/sources.md, 2);
 /// 0.1 on the four large joints and 0.05 on the wrist are the order of a 1e-5 to 4e-5 kg m^2
 /// rotor behind a 100:1 to 160:1 harmonic drive. Below about 0.01 the 1 ms multibody step of
-/// the light last link diverges (rapier-at-submillimetre notes).
+/// the light last link diverges (measured: docs/robot.md).
 pub fn default_armature(n: usize) -> Vec<f64> {
     (0..n).map(|i| if i < 4 { 0.1 } else { 0.05 }).collect()
 }

@@ -1,0 +1,233 @@
+//! What a trial does: the method, how it starts, and the settings of every stage (paper IV-C
+//! observation, IV-D registration, IV-E insertion, V-A the experiment's offsets), with the values
+//! the paper's experiment runs at as defaults.
+
+use crate::error::{Error, Result};
+use crate::method::register::RegistrationConfig;
+use crate::twin::control::{ImpedanceGains, is_positive};
+use serde::{Deserialize, Serialize};
+
+/// How the trial inserts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// Estimate the hole pose from the contact manifold, then insert along the estimate.
+    Manifold,
+    /// The paper's baseline: observe, then insert along the peg's z with no estimate.
+    Direct,
+}
+
+/// How a trial starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Start {
+    /// Partially inserted in the true hole (the paper's set-up).
+    Partial,
+    /// Above the nominal hole: approach, then a spiral search pressing on the surface until the
+    /// peg drops in, then down to the partial insertion.
+    Above,
+}
+
+/// Everything a trial does.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrialConfig {
+    pub method: Method,
+    pub start: Start,
+    /// The spiral search from above (`start = above`).
+    pub search: SearchConfig,
+    /// Observation time, s.
+    pub t_obs_s: f64,
+    /// Half-ranges of the uniform hole offset: x, y, z (m), roll, pitch, yaw (rad).
+    pub offset_range: [f64; 6],
+    /// Depth of the initial partial insertion, m.
+    pub start_depth_m: f64,
+    /// Observation: phase 1 amplitude scale until `observe_depth_m`, then phase 2 scale.
+    pub phase1_scale: f64,
+    pub phase2_scale: f64,
+    pub observe_depth_m: f64,
+    /// Share of `t_obs` spent descending to `observe_depth_m` (phase 1).
+    pub phase1_fraction: f64,
+    /// Gains of the observation motions: compliant, and softest in rotation, so that the
+    /// orientation error of the nominal pose presses the peg only lightly against the walls.
+    pub observe_gains: ImpedanceGains,
+    /// Observations kept after temporal downsampling.
+    pub observations: usize,
+    /// Small retract before alignment, m.
+    pub retract_m: f64,
+    /// High-stiffness gains of the in-plane alignment.
+    pub align_gains: ImpedanceGains,
+    /// Duration of the alignment move, s.
+    pub align_s: f64,
+    /// Compliant gains of the insertion.
+    pub insert_gains: ImpedanceGains,
+    /// Insertion speed of the target, m/s.
+    pub insert_speed_m_per_s: f64,
+    /// Time limit of the insertion, s.
+    pub insert_limit_s: f64,
+    /// The insertion target goes this far past the believed floor, m (the compliance turns it into
+    /// the seating force; it also absorbs the estimate's error in z).
+    pub insert_overshoot_m: f64,
+    /// The insertion target stops advancing once the estimated |Fz| exceeds this, N (a force
+    /// break condition, as Sunrise's `ForceCondition`): the peg has jammed.
+    pub insert_stop_force_n: f64,
+    /// Success when the final tip depth is within this of the floor, m (paper: 2 mm).
+    pub success_eps_m: f64,
+    pub registration: RegistrationConfig,
+}
+
+impl Default for TrialConfig {
+    fn default() -> Self {
+        let d = 5e-3;
+        let a = 5f64.to_radians();
+        TrialConfig {
+            method: Method::Manifold,
+            start: Start::Partial,
+            search: SearchConfig::default(),
+            t_obs_s: 10.0,
+            offset_range: [d, d, d, a, a, a],
+            start_depth_m: 3e-3,
+            phase1_scale: 1.0,
+            phase2_scale: 0.8,
+            observe_depth_m: 18e-3,
+            phase1_fraction: 0.6,
+            observe_gains: ImpedanceGains {
+                stiffness: [1000.0, 1000.0, 1500.0, 5.0, 5.0, 5.0],
+                additional_force: [0.0, 0.0, -5.0, 0.0, 0.0, 0.0],
+                ..Default::default()
+            },
+            observations: 1000,
+            retract_m: 1e-3,
+            align_gains: ImpedanceGains::uniform(4000.0, 250.0, 0.7),
+            align_s: 1.0,
+            insert_gains: ImpedanceGains {
+                stiffness: [1500.0, 1500.0, 2000.0, 50.0, 50.0, 50.0],
+                ..Default::default()
+            },
+            insert_speed_m_per_s: 15e-3,
+            insert_limit_s: 6.0,
+            insert_overshoot_m: 5e-3,
+            insert_stop_force_n: 40.0,
+            success_eps_m: 2e-3,
+            registration: RegistrationConfig::default(),
+        }
+    }
+}
+
+impl TrialConfig {
+    /// Rejects values a trial cannot run with, naming the field.
+    pub fn ensure_valid(&self) -> Result<()> {
+        if !is_positive(self.t_obs_s) {
+            return Err(Error::Input(format!(
+                "t_obs {} s: expected a positive time",
+                self.t_obs_s
+            )));
+        }
+        if self
+            .offset_range
+            .iter()
+            .any(|v| !(v.is_finite() && *v >= 0.0))
+        {
+            return Err(Error::Input(format!(
+                "offset range {:?}: expected finite half-ranges >= 0",
+                self.offset_range
+            )));
+        }
+        if !(self.insert_overshoot_m >= 0.0 && self.insert_overshoot_m <= 0.05) {
+            return Err(Error::Input(format!(
+                "insert_overshoot_m {} m: expected 0 to 0.05 m",
+                self.insert_overshoot_m
+            )));
+        }
+        if !is_positive(self.insert_stop_force_n) {
+            return Err(Error::Input(format!(
+                "insert_stop_force_n {} N: expected a positive force",
+                self.insert_stop_force_n
+            )));
+        }
+        if !(self.phase1_fraction > 0.0 && self.phase1_fraction <= 1.0) {
+            return Err(Error::Input(format!(
+                "phase1_fraction {}: expected a share in (0, 1]",
+                self.phase1_fraction
+            )));
+        }
+        self.search.ensure_valid()?;
+        self.observe_gains.ensure_valid()?;
+        self.align_gains.ensure_valid()?;
+        self.insert_gains.ensure_valid()?;
+        self.registration.ensure_valid()
+    }
+}
+
+/// The spiral search from above (the classic peg-in-hole search, before the paper's partial
+/// insertion): approach, press on the fixture's top, spiral until the peg drops in.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchConfig {
+    /// Time limit of the whole search, s.
+    pub limit_s: f64,
+    /// Start height of the tip above the highest mouth the offsets allow, m.
+    pub start_clearance_m: f64,
+    /// Approach speed along the nominal hole axis until contact, m/s.
+    pub approach_speed_m_per_s: f64,
+    /// Target depth below the height of first contact while spiralling (the press), m.
+    pub press_depth_m: f64,
+    /// The hole is found when the tip is this far below the height of first contact, m.
+    pub drop_m: f64,
+    /// Radial growth of the spiral per turn, m.
+    pub spiral_pitch_m: f64,
+    /// Speed along the spiral, m/s.
+    pub spiral_speed_m_per_s: f64,
+    /// Spiral radius beyond the position uncertainty and the clearance, m.
+    pub spiral_margin_m: f64,
+    /// Duration of the move down to the partial insertion once the peg dropped, s.
+    pub descend_s: f64,
+}
+
+impl Default for SearchConfig {
+    fn default() -> Self {
+        SearchConfig {
+            limit_s: 30.0,
+            start_clearance_m: 5e-3,
+            approach_speed_m_per_s: 10e-3,
+            press_depth_m: 3e-3,
+            drop_m: 1e-3,
+            spiral_pitch_m: 0.5e-3,
+            spiral_speed_m_per_s: 10e-3,
+            spiral_margin_m: 1e-3,
+            descend_s: 0.5,
+        }
+    }
+}
+
+impl SearchConfig {
+    /// Rejects values a search cannot run with, naming the field.
+    pub fn ensure_valid(&self) -> Result<()> {
+        for (field, v) in [
+            ("limit_s", self.limit_s),
+            ("approach_speed_m_per_s", self.approach_speed_m_per_s),
+            ("drop_m", self.drop_m),
+            ("spiral_pitch_m", self.spiral_pitch_m),
+            ("spiral_speed_m_per_s", self.spiral_speed_m_per_s),
+            ("descend_s", self.descend_s),
+        ] {
+            if !is_positive(v) {
+                return Err(Error::Input(format!(
+                    "search {field} {v}: expected a positive value"
+                )));
+            }
+        }
+        for (field, v) in [
+            ("start_clearance_m", self.start_clearance_m),
+            ("press_depth_m", self.press_depth_m),
+            ("spiral_margin_m", self.spiral_margin_m),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::Input(format!(
+                    "search {field} {v}: expected a finite value >= 0"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
