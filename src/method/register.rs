@@ -120,7 +120,8 @@ pub struct RegistrationConfig {
     pub sigma_rad: f64,
     /// Observations per observation normal (k).
     pub normal_k: usize,
-    /// Seed of the restarts' initial poses.
+    /// Seed of the restarts' initial poses (in a trial, mixed with the trial's registration
+    /// stream: `method::seeds::TrialSeeds::registration`).
     pub seed: u64,
     /// Form of the paper's update.
     pub paper_update: PaperUpdate,

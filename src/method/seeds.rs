@@ -33,7 +33,11 @@ pub fn episode(build_seed: u64, episode: usize) -> u64 {
     mix(build_seed.wrapping_add((episode as u64 + 1).wrapping_mul(GOLDEN)))
 }
 
-/// The streams of one trial, derived from its seed.
+/// The streams of one trial, derived from its seed. The offset, perturbation and sensor streams
+/// keep the derivations the first campaigns were run with (so their records stay reproducible);
+/// one consequence: trial seed n's perturbation stream is trial seed n + 1's sensor stream.
+/// Campaign trial seeds come from [`trial`], a SplitMix64 output, and are never adjacent; the
+/// registration stream is mixed.
 #[derive(Clone, Copy, Debug)]
 pub struct TrialSeeds {
     pub trial: u64,
@@ -53,6 +57,12 @@ impl TrialSeeds {
     /// The sensors: encoder and joint-torque noise, torque sensor bias.
     pub fn sensors(&self) -> u64 {
         self.trial
+    }
+
+    /// The registration's restarts (their initial poses, paper IV-D), mixed with the seed of the
+    /// registration settings so that a scenario can still vary it.
+    pub fn registration(&self, config_seed: u64) -> u64 {
+        mix(self.trial ^ 0x7265_6769_7374_6572) ^ config_seed
     }
 }
 
@@ -78,5 +88,21 @@ mod tests {
         assert_ne!(trial(1, "cross", 0.5, 3), trial(1, "gear", 0.5, 3));
         assert_ne!(trial(1, "cross", 0.5, 3), trial(1, "cross", 1.0, 3));
         assert_ne!(trial(1, "cross", 0.5, 3), trial(2, "cross", 0.5, 3));
+    }
+
+    #[test]
+    fn every_stream_of_a_trial_differs_and_follows_the_trial_seed() {
+        for seed in [0, 7, trial(1, "gear", 0.1, 3)] {
+            let s = TrialSeeds { trial: seed };
+            let mut all = vec![s.offset(), s.perturbation(), s.sensors(), s.registration(0)];
+            all.sort_unstable();
+            all.dedup();
+            assert_eq!(all.len(), 4, "trial seed {seed}");
+            assert_ne!(s.registration(0), s.registration(1));
+            assert_ne!(
+                s.registration(0),
+                TrialSeeds { trial: seed + 1 }.registration(0)
+            );
+        }
     }
 }

@@ -16,7 +16,7 @@ use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::insert::{Insertion, insert};
 use crate::method::manifold::Manifold;
 use crate::method::observe::{Observation, observe};
-use crate::method::register::register;
+use crate::method::register::{RegistrationConfig, register};
 use crate::method::search::{search, start_pose};
 use crate::method::seeds::TrialSeeds;
 use crate::method::session::{Phase, Session, TraceRow};
@@ -65,7 +65,7 @@ pub fn run_trial(
     let mut stages = Stages::new(search_s, observation, observations.len(), dt);
     if session.fault().is_none() {
         (stages.estimate, stages.register_wall_s) =
-            estimate_hole(manifold, &observations, &believed, config)?;
+            estimate_hole(manifold, &observations, &believed, config, &setup.seeds)?;
         let estimate = stages.estimate.as_ref();
         stages.insertion = insert(
             &mut session,
@@ -359,12 +359,14 @@ impl Stages {
 
 /// Registration (IV-D, Fig. 3 "register") for the manifold method: the estimated `base_T_hole`
 /// from the observations, starting from the believed hole, and its wall time, s. None for the
-/// direct baseline, or when too few observations were recorded for an observation normal.
+/// direct baseline, or when too few observations were recorded for an observation normal. The
+/// restarts draw from the trial's registration stream.
 fn estimate_hole(
     manifold: Option<&Manifold>,
     observations: &[Pose6],
     believed: &Iso,
     config: &TrialConfig,
+    seeds: &TrialSeeds,
 ) -> Result<(Option<Pose6>, f64)> {
     if config.method != Method::Manifold {
         return Ok((None, 0.0));
@@ -376,7 +378,11 @@ fn estimate_hole(
     }
     let t0 = Instant::now();
     let init = Pose6::from_iso(believed);
-    let reg = register(manifold, observations, &init, &config.registration)?;
+    let registration = RegistrationConfig {
+        seed: seeds.registration(config.registration.seed),
+        ..config.registration.clone()
+    };
+    let reg = register(manifold, observations, &init, &registration)?;
     Ok((Some(reg.estimate), t0.elapsed().as_secs_f64()))
 }
 
