@@ -299,6 +299,21 @@ fn manifold_build_rejects_bad_input() {
             ],
             "episodes",
         ),
+        (
+            vec![
+                "--geometry",
+                "cross",
+                "--clearance-mm",
+                "0.5",
+                "--episodes",
+                "1",
+                "--episode-s",
+                "0.5",
+                "--points",
+                "50000",
+            ],
+            "fewer than the 50000 requested",
+        ),
     ] {
         let mut all = vec!["manifold", "build", "--quiet", "--out", out];
         all.extend(args);

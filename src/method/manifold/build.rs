@@ -235,6 +235,33 @@ fn representative(members: &[u32], scaled: &[[f64; 6]]) -> usize {
         .expect("a cell has members") as usize
 }
 
+/// Largest share of sampling episodes whose physics may fault before a build is refused: the
+/// dropped episodes would leave holes in the manifold where the faults happened.
+pub const MAX_FAULTED_SHARE: f64 = 0.05;
+
+/// Refuses a build in which more than [`MAX_FAULTED_SHARE`] of the episodes faulted, naming the
+/// first faults.
+fn check_faults(faults: &[(usize, SimFault)], episodes: usize, pair: &PartPair) -> Result<()> {
+    if (faults.len() as f64) <= MAX_FAULTED_SHARE * episodes as f64 {
+        return Ok(());
+    }
+    let examples: Vec<String> = faults
+        .iter()
+        .take(3)
+        .map(|(e, f)| format!("episode {e} at {:.3} s: {}", f.time_s, f.reason))
+        .collect();
+    Err(Error::Input(format!(
+        "the physics faulted in {} of {} sampling episodes of {} at {} mm (at most {} % may): {}; \
+         nothing was cached",
+        faults.len(),
+        episodes,
+        pair.name,
+        pair.clearance_m * 1e3,
+        MAX_FAULTED_SHARE * 100.0,
+        examples.join("; ")
+    )))
+}
+
 /// The result of a build.
 pub struct BuildReport {
     pub manifold: Manifold,
@@ -276,7 +303,16 @@ pub fn build(
         .enumerate()
         .filter_map(|(i, e)| e.fault.clone().map(|f| (i, f)))
         .collect();
+    check_faults(&faults, config.episodes, pair)?;
     let raw: Vec<Pose6> = episodes.into_iter().flat_map(|e| e.poses).collect();
+    if raw.len() < points {
+        return Err(Error::Input(format!(
+            "{} contact poses were recorded in {} episodes, fewer than the {points} requested: \
+             ask for fewer --points or more --episodes / --episode-s (nothing was cached)",
+            raw.len(),
+            config.episodes
+        )));
+    }
     if raw.len() < DEFAULT_NORMAL_K + 1 {
         return Err(Error::Input(format!(
             "only {} contact poses were recorded: the sampling motion never pressed hard enough \
@@ -346,6 +382,32 @@ mod tests {
         assert!(
             kept.iter().all(|k| points.contains(k)),
             "keeps real samples"
+        );
+    }
+
+    #[test]
+    fn a_build_with_more_than_5_percent_faulted_episodes_is_refused() {
+        let pair = crate::twin::geometry::build_builtin(
+            crate::twin::geometry::builtin_by_name("cross").unwrap(),
+            0.5e-3,
+        )
+        .unwrap();
+        let fault = |e: usize| {
+            (
+                e,
+                SimFault {
+                    time_s: 1.0,
+                    reason: "runaway velocity".into(),
+                },
+            )
+        };
+        let two: Vec<_> = (0..2).map(fault).collect();
+        assert!(check_faults(&two, 48, &pair).is_ok(), "2 of 48 is 4 %");
+        let three: Vec<_> = (0..3).map(fault).collect();
+        let e = check_faults(&three, 48, &pair).unwrap_err().to_string();
+        assert!(
+            e.contains("3 of 48") && e.contains("runaway velocity"),
+            "{e}"
         );
     }
 }
