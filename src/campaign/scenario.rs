@@ -143,6 +143,9 @@ pub struct PhysicsOverride {
     pub dt_s: Option<f64>,
     /// Solver iterations (substeps) per step.
     pub solver_iterations: Option<usize>,
+    /// Gauss-Seidel passes over the constraints per substep.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pgs_iterations: Option<usize>,
     /// Contact constraint natural frequency, Hz.
     pub contact_frequency_hz: Option<f64>,
     /// Coulomb friction between peg and hole.
@@ -272,6 +275,13 @@ impl Scenario {
                 "1 to 50",
             );
         }
+        if !(1..=50).contains(&p.pgs_iterations) {
+            return bad(
+                "physics.pgs_iterations",
+                p.pgs_iterations.to_string(),
+                "1 to 50",
+            );
+        }
         if !(p.contact_frequency_hz > 0.0 && p.contact_frequency_hz.is_finite()) {
             return bad(
                 "physics.contact_frequency_hz",
@@ -350,6 +360,7 @@ impl Scenario {
         let ph = &mut p.physics;
         ph.dt_s = o.dt_s.unwrap_or(ph.dt_s);
         ph.solver_iterations = o.solver_iterations.unwrap_or(ph.solver_iterations);
+        ph.pgs_iterations = o.pgs_iterations.unwrap_or(ph.pgs_iterations);
         ph.contact_frequency_hz = o.contact_frequency_hz.unwrap_or(ph.contact_frequency_hz);
         ph.friction = o.friction.unwrap_or(ph.friction);
         p
@@ -412,6 +423,9 @@ methods = ["manifold", "direct"]
             format!("{MINIMAL}\n[gains.insert]\nstiffness = [9000, 800, 2000, 40, 40, 40]\n");
         let e = Scenario::parse(&text).unwrap_err();
         assert!(e.to_string().contains("gains.insert"), "{e}");
+        let e =
+            Scenario::parse(&format!("{MINIMAL}\n[physics]\npgs_iterations = 0\n")).unwrap_err();
+        assert!(e.to_string().contains("physics.pgs_iterations"), "{e}");
         let e = Scenario::parse(&format!("{MINIMAL}\n[physics]\nfriction = -1\n")).unwrap_err();
         assert!(e.to_string().contains("physics.friction"), "{e}");
     }
