@@ -200,36 +200,11 @@ impl Cell {
         gains: ImpedanceGains,
         seed: u64,
     ) -> Result<Cell> {
-        if !crate::twin::control::is_positive(params.peg_mass_kg) {
-            return Err(Error::Input(format!(
-                "peg mass {} kg: expected a positive value",
-                params.peg_mass_kg
-            )));
-        }
+        let steps_per_cycle = steps_per_control_cycle(params)?;
         let dt = params.physics.dt_s;
-        let period = 1.0 / params.controller.rate_hz;
-        let steps_per_cycle = (period / dt).round() as usize;
-        if steps_per_cycle == 0 || ((steps_per_cycle as f64) * dt - period).abs() > 1e-9 {
-            return Err(Error::Input(format!(
-                "control period {period} s is not a whole number of physics steps of {dt} s"
-            )));
-        }
         let friction = params.physics.friction;
         let tcp_on_flange = flange_t_tcp(pair);
-        let peg_props = compound_collider(&pair.peg, friction)
-            .mass(params.peg_mass_kg as f32)
-            .build()
-            .mass_properties();
-        let tool_inertial = Inertial {
-            mass_kg: peg_props.mass() as f64,
-            com: Point3::from(crate::twin::physics::v64(peg_props.local_com)),
-            inertia: nalgebra::Matrix3::from(peg_props.reconstruct_inertia_matrix()).cast::<f64>(),
-        }
-        .transformed(&tcp_on_flange);
-        let model = robot.with_tool(Tool {
-            inertial: tool_inertial,
-            flange_t_tcp: tcp_on_flange,
-        });
+        let model = with_peg(robot, pair, params)?;
         let q0 = model.inverse_kinematics(start_tcp, &TOOL_DOWN_Q)?;
 
         let mut world = params.physics.new_world();
@@ -460,6 +435,45 @@ impl Cell {
     fn true_tcp_pose(&self) -> Iso {
         self.model.tcp_pose(&self.arm.q(&self.world))
     }
+}
+
+/// Physics steps per control cycle: the control period must be a whole number of steps.
+fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
+    let dt = params.physics.dt_s;
+    let period = 1.0 / params.controller.rate_hz;
+    let steps = (period / dt).round() as usize;
+    if steps == 0 || ((steps as f64) * dt - period).abs() > 1e-9 {
+        return Err(Error::Input(format!(
+            "control period {period} s is not a whole number of physics steps of {dt} s"
+        )));
+    }
+    Ok(steps)
+}
+
+/// The robot model carrying the peg as its tool: the peg's mass properties (its convex pieces at
+/// the peg mass of `params`) on the flange at `flange_t_tcp`.
+fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Result<RobotModel> {
+    if !crate::twin::control::is_positive(params.peg_mass_kg) {
+        return Err(Error::Input(format!(
+            "peg mass {} kg: expected a positive value",
+            params.peg_mass_kg
+        )));
+    }
+    let tcp_on_flange = flange_t_tcp(pair);
+    let peg_props = compound_collider(&pair.peg, params.physics.friction)
+        .mass(params.peg_mass_kg as f32)
+        .build()
+        .mass_properties();
+    let tool_inertial = Inertial {
+        mass_kg: peg_props.mass() as f64,
+        com: Point3::from(crate::twin::physics::v64(peg_props.local_com)),
+        inertia: nalgebra::Matrix3::from(peg_props.reconstruct_inertia_matrix()).cast::<f64>(),
+    }
+    .transformed(&tcp_on_flange);
+    Ok(robot.with_tool(Tool {
+        inertial: tool_inertial,
+        flange_t_tcp: tcp_on_flange,
+    }))
 }
 
 /// The table: a fixed slab with its top at z = 0 (the base stands on it).
