@@ -3,7 +3,7 @@
 //! A free peg (the peg alone, as a rigid body) is held by a 6-DoF Cartesian impedance at its tip
 //! and driven through a fixed matrix of cases. Each case states the outcome it expects and
 //! reports what it observed, the largest exact penetration (f64 separating axes, see
-//! `sim::penetration`), the contact force read from the solver against a momentum check
+//! `twin::physics::penetration`), the contact force read from the solver against a momentum check
 //! (m dv/dt minus the applied forces), and the physics speed in steps per second.
 
 use crate::twin::geometry::PartPair;
