@@ -14,7 +14,7 @@
 //!    until the relative motion since could have closed `g` down to the prediction distance. Any
 //!    point of body 2 at distance `r` from its origin moves relative to body 1 in a step by at
 //!    most `|dt| + 2 sin(dtheta / 2) r` (and symmetrically); these bounds are summed as the
-//!    bodies move ([`Odometer`]), so a skipped pair is provably farther apart than the
+//!    bodies move (`Odometer`), so a skipped pair is provably farther apart than the
 //!    prediction distance: no contact is lost.
 //! 3. Only the manifolds that hold contact points are handed to rapier; they come back at the
 //!    next step with the solver's impulses (warm start) and return to their slot.
