@@ -238,12 +238,7 @@ impl Setup {
             start: config.start,
             t_obs_s: config.t_obs_s,
             offset: self.offset.to_mm_deg(),
-            outcome: if fault.is_some() {
-                "sim_fault"
-            } else {
-                "failure"
-            }
-            .into(),
+            outcome: outcome(fault.is_some(), false).into(),
             stopped: None,
             success: false,
             fault,
@@ -276,14 +271,7 @@ impl Setup {
             fault.is_none() && (final_depth - pair.cavity_depth_m).abs() <= config.success_eps_m;
         let fz = &stages.insertion.fz_n;
         TrialResult {
-            outcome: if fault.is_some() {
-                "sim_fault"
-            } else if success {
-                "success"
-            } else {
-                "failure"
-            }
-            .into(),
+            outcome: outcome(fault.is_some(), success).into(),
             success,
             estimate: stages.estimate.map(|e| e.0),
             errors: stages
@@ -302,6 +290,15 @@ impl Setup {
             times: stages.times(),
             ..self.common(pair, config, fault, started)
         }
+    }
+}
+
+/// A trial's outcome as its record names it: `sim_fault` whenever the physics faulted.
+fn outcome(faulted: bool, success: bool) -> &'static str {
+    match (faulted, success) {
+        (true, _) => "sim_fault",
+        (false, true) => "success",
+        (false, false) => "failure",
     }
 }
 

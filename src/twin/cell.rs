@@ -121,8 +121,9 @@ pub struct Cell {
     qd: Vec<f64>,
     /// An external wrench pushed onto the TCP (base frame, torque about the TCP), for diagnostics.
     disturbance: Option<Wrench6>,
-    /// Joint positions as the encoders read them at the last control cycle, rad.
-    q_measured: Vec<f64>,
+    /// TCP pose from the encoder readings of the last control cycle (base frame): the model's
+    /// forward kinematics, evaluated once per cycle by the controller's model evaluation.
+    tcp_measured: Iso,
     /// Exact penetration check of the peg against the fixture (fault detection).
     probe: Option<(PenetrationProbe, crate::twin::geometry::solid::Solid)>,
     /// Largest exact penetration before the physics counts as blown up, m.
@@ -236,6 +237,7 @@ impl Cell {
             &q0,
         )?;
         let n = model.dof();
+        let model_tcp = model.tcp_pose(&q0);
         let sensors = Sensors::new(params.sensors.clone(), n, seed)?;
         let mut cell = Cell {
             world,
@@ -253,7 +255,7 @@ impl Cell {
             tau_link: DVector::zeros(n),
             qd: vec![0.0; n],
             disturbance: None,
-            q_measured: q0.clone(),
+            tcp_measured: model_tcp,
             probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
             penetration_fault_m: pair.clearance_m.max(0.1e-3),
         };
@@ -314,10 +316,10 @@ impl Cell {
         let period = 1.0 / self.controller.params.rate_hz;
         let q = self.arm.q(&self.world);
         let q_meas = self.sensors.read_q(&q);
-        self.q_measured.clone_from(&q_meas);
         let tau_meas = self.sensors.read_torques(&self.tau_link, period);
         let gravity = Vector3::from(self.controller.params.gravity);
         let d = self.model.dynamics(&q_meas, &gravity);
+        self.tcp_measured = d.tcp;
         self.sensors.estimate(&d, &self.qd, &tau_meas, period);
         self.tau = self.controller.update(&d, &q_meas, &self.qd);
     }
@@ -346,7 +348,7 @@ impl Cell {
     pub fn measurements(&self) -> Measurements {
         Measurements {
             time_s: self.time_s(),
-            tcp: self.model.tcp_pose(&self.q_measured),
+            tcp: self.tcp_measured,
             wrench: self.sensors.wrench,
             contact: self.sensors.contact,
         }
@@ -355,16 +357,6 @@ impl Cell {
     /// The ground truth (see [`Truth`]).
     pub fn truth(&self) -> Truth<'_> {
         Truth { cell: self }
-    }
-
-    /// The robot model, with the peg as its tool.
-    pub fn model(&self) -> &RobotModel {
-        &self.model
-    }
-
-    /// The controller's mode (gains and target).
-    pub fn mode(&self) -> &Mode {
-        self.controller.mode()
     }
 
     /// Commands a new control mode (checked as the controller checks it).

@@ -132,7 +132,7 @@ pub fn resolve(
 }
 
 /// The cached manifold of `pair`, built and cached first when missing.
-pub fn load_or_build(
+fn load_or_build(
     pair: &PartPair,
     robot: &RobotModel,
     recipe: &Recipe,
