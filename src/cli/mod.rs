@@ -6,8 +6,6 @@ use clap::{Args, Parser, Subcommand};
 use pegtwin::error::{Error, Result};
 use pegtwin::twin::geometry::mesh::load_pair;
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
-use pegtwin::twin::physics::PhysicsParams;
-use pegtwin::twin::validate::{FreePegGains, ValidationReport, validate};
 use std::path::PathBuf;
 
 mod campaign;
@@ -16,6 +14,7 @@ mod progress;
 mod registration;
 mod robot;
 mod trial;
+mod validate;
 pub use campaign::{CampaignArgs, CheckArgs, MergeArgs, TuneArgs};
 pub use registration::{ManifoldAction, RegisterArgs};
 pub use robot::RobotAction;
@@ -119,6 +118,10 @@ pub struct PairArgs {
 pub struct ValidateArgs {
     #[command(flatten)]
     pub pair: PairArgs,
+    /// Drive the peg on the iiwa 14's flange through the controller at the trials' gains (and
+    /// the manifold sampler's), instead of the free peg.
+    #[arg(long)]
+    pub arm: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -159,19 +162,7 @@ impl PairArgs {
 pub fn run(cli: Cli) -> Result<i32> {
     match cli.command {
         Command::Geometry { action } => geometry_command(action),
-        Command::Validate(args) => {
-            let pair = args.pair.build()?;
-            let report = validate(&pair, &PhysicsParams::default(), FreePegGains::default());
-            if args.json {
-                println!(
-                    "{}",
-                    serde_json::to_string_pretty(&report).expect("report serialises")
-                );
-            } else {
-                print_validation(&report);
-            }
-            Ok(if report.passed { 0 } else { 1 })
-        }
+        Command::Validate(args) => validate::validate_command(args),
         Command::Manifold { action } => registration::manifold_command(action),
         Command::Register(args) => registration::register_command(args),
         Command::Robot { action } => robot::robot_command(action),
@@ -242,36 +233,4 @@ fn geometry_command(action: GeometryAction) -> Result<i32> {
             Ok(0)
         }
     }
-}
-
-fn print_validation(r: &ValidationReport) {
-    println!(
-        "validate {} at {} mm clearance (penetration limit {:.4} mm)",
-        r.geometry, r.clearance_mm, r.penetration_limit_mm
-    );
-    for c in &r.cases {
-        println!(
-            "{} {:<18} pen {:.4} mm  F_solver ({:+.3}, {:+.3}, {:+.3}) N  momentum err {:.2} %  {:.0} steps/s",
-            if c.passed { "PASS" } else { "FAIL" },
-            c.name,
-            c.max_penetration_mm,
-            c.force_readout_n[0],
-            c.force_readout_n[1],
-            c.force_readout_n[2],
-            c.force_error_pct,
-            c.steps_per_s
-        );
-        println!(
-            "     expected: {}\n     observed: {}",
-            c.expected, c.observed
-        );
-    }
-    println!(
-        "{}",
-        if r.passed {
-            "all cases as expected"
-        } else {
-            "SOME CASES FAILED"
-        }
-    );
 }

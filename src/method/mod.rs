@@ -2,7 +2,8 @@
 //! ([`primitives`], [`manifold`]), observe ([`observe`], after [`search`] when starting above),
 //! register ([`register`], Algorithm 1), insert ([`insert`]); [`trial`] runs them in order.
 //! Every stage drives the cell through a [`session::Session`], which lends it the real robot's
-//! ports and nothing of the simulation's truth.
+//! ports and nothing of the simulation's truth. [`validate_arm`] checks the physics under the
+//! method's gains and primitives (`pegtwin validate --arm`).
 
 pub mod config;
 pub mod insert;
@@ -14,3 +15,4 @@ pub mod search;
 pub mod seeds;
 pub mod session;
 pub mod trial;
+pub mod validate_arm;

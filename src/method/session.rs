@@ -1,7 +1,8 @@
 //! The method's handle on the cell: the real robot's ports and nothing else. A session commands
 //! impedance targets and gains, reads [`Measurements`] (encoder pose, estimated wrench, contact
-//! flag), and steps the physics, stopping at the first physics fault and keeping it. It records
-//! the optional time series (`--trace`), the one place where the truth is read, for the user.
+//! flag), and steps the physics, stopping at the first physics fault and keeping it. After every
+//! step it hands the cell to an optional [`Recorder`] (the `--trace` time series, the checks of
+//! `validate --arm`): the one place where the truth is read, for the user, never for the method.
 //!
 //! Every stage of the method (search, observe, insert, and the manifold sampler) drives a
 //! `Session`; none of them can reach the cell's ground truth, which is the point.
@@ -74,19 +75,40 @@ pub fn trace_csv(rows: &[TraceRow]) -> Vec<u8> {
     w.into_inner().expect("in-memory CSV")
 }
 
-/// The method's stepping of a cell: faults stop it, the trace records each step.
+/// What looks at the cell after every step of a session: it may read the truth, and it cannot
+/// command anything.
+pub trait Recorder {
+    fn record(&mut self, cell: &Cell, phase: Phase);
+}
+
+/// The `--trace` time series: one row per step.
+impl Recorder for Vec<TraceRow> {
+    fn record(&mut self, cell: &Cell, phase: Phase) {
+        let m = cell.measurements();
+        self.push(TraceRow {
+            time_s: m.time_s,
+            phase: phase.name(),
+            tcp: Pose6::from_iso(&m.tcp).0,
+            est_wrench: m.wrench.into(),
+            true_wrench: cell.truth().contact_wrench().into(),
+            contact: m.contact,
+        });
+    }
+}
+
+/// The method's stepping of a cell: faults stop it, the recorder sees each step.
 pub struct Session<'a> {
     cell: &'a mut Cell,
-    trace: Option<&'a mut Vec<TraceRow>>,
+    recorder: Option<&'a mut dyn Recorder>,
     fault: Option<SimFault>,
     phase: Phase,
 }
 
 impl<'a> Session<'a> {
-    pub fn new(cell: &'a mut Cell, trace: Option<&'a mut Vec<TraceRow>>, phase: Phase) -> Self {
+    pub fn new(cell: &'a mut Cell, recorder: Option<&'a mut dyn Recorder>, phase: Phase) -> Self {
         Session {
             cell,
-            trace,
+            recorder,
             fault: None,
             phase,
         }
@@ -137,16 +159,8 @@ impl<'a> Session<'a> {
             self.fault = Some(f);
             return false;
         }
-        if let Some(trace) = self.trace.as_deref_mut() {
-            let m = self.cell.measurements();
-            trace.push(TraceRow {
-                time_s: m.time_s,
-                phase: self.phase.name(),
-                tcp: Pose6::from_iso(&m.tcp).0,
-                est_wrench: m.wrench.into(),
-                true_wrench: self.cell.truth().contact_wrench().into(),
-                contact: m.contact,
-            });
+        if let Some(recorder) = self.recorder.as_deref_mut() {
+            recorder.record(self.cell, self.phase);
         }
         true
     }

@@ -19,7 +19,7 @@ use crate::method::observe::{Observation, observe};
 use crate::method::register::{RegistrationConfig, register};
 use crate::method::search::{search, start_pose};
 use crate::method::seeds::TrialSeeds;
-use crate::method::session::{Phase, Session, TraceRow};
+use crate::method::session::{Phase, Recorder, Session, TraceRow};
 use crate::pose::{Iso, Pose6};
 use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
 use crate::twin::geometry::PartPair;
@@ -46,7 +46,8 @@ pub fn run_trial(
     let started = Instant::now();
     let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
     let mut cell = setup.cell(pair, robot, params, config)?;
-    let mut session = Session::new(&mut cell, trace, Phase::Search);
+    let recorder = trace.map(|t| t as &mut dyn Recorder);
+    let mut session = Session::new(&mut cell, recorder, Phase::Search);
     let Some(believed) = setup.approach(&mut session, config, pair.clearance_m) else {
         let fault = session.fault().cloned();
         return Ok(setup.stopped(pair, config, fault, started));

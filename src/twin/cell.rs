@@ -39,6 +39,12 @@ pub const TOOL_DOWN_Q: [f64; 7] = [
 /// when misaligned, the press estimate within 1 N), as measured for the arm (docs/robot.md).
 pub const ARM_SOLVER_ITERATIONS: usize = 2;
 
+/// Projected Gauss-Seidel passes per substep of the arm cell. One pass leaves the contacts of a
+/// peg pinched between opposite walls unconverged (the gear at 0.1 mm: 4 of 8 direct trials
+/// fault with one pass, none with four); four cost a third of the arm's speed
+/// (docs/physics.md, "The arm at 0.1 mm").
+pub const ARM_PGS_ITERATIONS: usize = 4;
+
 /// Cell layout and the parameters of everything in it.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -58,6 +64,7 @@ impl Default for CellParams {
         CellParams {
             physics: PhysicsParams {
                 solver_iterations: ARM_SOLVER_ITERATIONS,
+                pgs_iterations: ARM_PGS_ITERATIONS,
                 ..PhysicsParams::default()
             },
             controller: ControllerParams::default(),
@@ -128,6 +135,8 @@ pub struct Cell {
     probe: Option<(PenetrationProbe, crate::twin::geometry::solid::Solid)>,
     /// Largest exact penetration before the physics counts as blown up, m.
     penetration_fault_m: f64,
+    /// Per joint: the last time its commanded torque was clamped to its limit, s.
+    saturated_at_s: Vec<f64>,
 }
 
 /// What the robot reports, as of its last control cycle: the only inputs of the method.
@@ -182,12 +191,27 @@ pub struct SimFault {
     /// Simulated time of detection, s.
     pub time_s: f64,
     pub reason: String,
+    /// The joints whose commanded torque sat at its limit within the last 100 ms before the
+    /// fault. Not empty: the commanded motion asked more of the arm than its drives give (the
+    /// real robot would stop on its torque monitoring too). Empty: the fault is the physics'.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub saturated_joints: Vec<String>,
+}
+
+impl SimFault {
+    /// Whether the commanded motion, not the physics, is the fault's cause: a joint's torque sat
+    /// at its limit just before it.
+    pub fn commanded(&self) -> bool {
+        !self.saturated_joints.is_empty()
+    }
 }
 
 /// Steps between exact penetration checks.
 const PENETRATION_CHECK_STEPS: u64 = 250;
 /// A joint faster than this multiple of its speed limit is a runaway.
 const RUNAWAY_FACTOR: f64 = 3.0;
+/// How long before a fault a torque at its limit counts as the fault's cause, s.
+pub const SATURATION_WINDOW_S: f64 = 0.1;
 
 impl Cell {
     /// Builds the cell with the arm at rest at `start_tcp` (base frame) under Cartesian impedance
@@ -258,6 +282,7 @@ impl Cell {
             tcp_measured: model_tcp,
             probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
             penetration_fault_m: pair.clearance_m.max(0.1e-3),
+            saturated_at_s: vec![f64::NEG_INFINITY; n],
         };
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.
         let k = cell.model.kinematics(&q0);
@@ -322,6 +347,29 @@ impl Cell {
         self.tcp_measured = d.tcp;
         self.sensors.estimate(&d, &self.qd, &tau_meas, period);
         self.tau = self.controller.update(&d, &q_meas, &self.qd);
+        let now = self.time_s();
+        for (at, &sat) in self
+            .saturated_at_s
+            .iter_mut()
+            .zip(self.controller.saturated())
+        {
+            if sat {
+                *at = now;
+            }
+        }
+    }
+
+    /// The joints whose commanded torque was clamped to its limit within the last
+    /// [`SATURATION_WINDOW_S`].
+    fn recently_saturated(&self) -> Vec<String> {
+        let now = self.time_s();
+        self.model
+            .joints
+            .iter()
+            .zip(&self.saturated_at_s)
+            .filter(|(_, at)| now - **at <= SATURATION_WINDOW_S)
+            .map(|(j, _)| j.name.clone())
+            .collect()
     }
 
     fn apply_disturbance(&mut self, w: &Wrench6) {
@@ -391,9 +439,20 @@ impl Cell {
     /// more than the clearance (checked exactly every 250 steps).
     pub fn fault(&self) -> Option<SimFault> {
         let fault = |reason: String| {
+            let saturated_joints = self.recently_saturated();
+            let reason = if saturated_joints.is_empty() {
+                reason
+            } else {
+                format!(
+                    "{reason} (commanded torque at its limit within {} ms before: {})",
+                    SATURATION_WINDOW_S * 1e3,
+                    saturated_joints.join(", ")
+                )
+            };
             Some(SimFault {
                 time_s: self.time_s(),
                 reason,
+                saturated_joints,
             })
         };
         let q = self.arm.q(&self.world);

@@ -14,9 +14,13 @@
 //! MuJoCo Menagerie's iiwa servos), damping ratio 1 on the joint-space inertia diagonal.
 //!
 //! Both produce the torque on top of gravity; like the real controller (which adds gravity
-//! internally), [`Controller`] adds g(q), then limits the rate of change of the commanded torque
-//! per cycle and clamps each joint to its torque limit. Switching mode re-targets the new mode at
-//! the current pose, and the rate limit carries the torque across the switch without a jump.
+//! internally), [`Controller`] adds g(q) and clamps each joint to its torque limit. Switching mode
+//! is bumpless: the difference between the last torque of the old mode and the first of the new
+//! one is added as an offset that fades linearly to zero over [`ControllerParams::switch_blend_s`].
+//! The offset depends on time only, never on the state, so it cannot destabilise the loop. (An
+//! earlier version slewed the task torque by 1 N m per cycle in every cycle, as franka_ros does;
+//! inside the feedback loop that lag pumped energy into the wrist at the stiff, lightly damped
+//! corners of the Sunrise ranges: docs/physics.md, "The Sunrise gain corners".)
 
 use crate::error::{Error, Result};
 use crate::twin::robot::{Dynamics, GRAVITY_UPRIGHT, Iso, RobotModel};
@@ -185,18 +189,20 @@ pub enum Mode {
 pub struct ControllerParams {
     /// Control rate, Hz (the physics step must divide the control period).
     pub rate_hz: f64,
-    /// Largest change of the commanded torque (without gravity) per control cycle, N m.
-    pub torque_rate_limit_nm: f64,
+    /// Time over which a mode switch fades from the old mode's torque to the new one's, s
+    /// (0: switch at once).
+    pub switch_blend_s: f64,
     /// Gravity in the robot base frame, m/s^2.
     pub gravity: [f64; 3],
 }
 
 impl Default for ControllerParams {
-    /// 1 kHz, 1 N m per cycle (franka_ros's Delta-tau_max, docs/sources.md, 5.1), upright base.
+    /// 1 kHz, a 50 ms switch blend (our choice: Sunrise does not document how it smooths a mode
+    /// switch), upright base.
     fn default() -> Self {
         ControllerParams {
             rate_hz: 1000.0,
-            torque_rate_limit_nm: 1.0,
+            switch_blend_s: 0.05,
             gravity: GRAVITY_UPRIGHT.into(),
         }
     }
@@ -210,8 +216,12 @@ pub struct Controller {
     pub q_null: Vec<f64>,
     /// Last commanded torque without gravity, N m.
     tau_task: DVector<f64>,
+    /// The fading offset of a mode switch in progress.
+    blend: Blend,
     /// Joint torque limits, N m.
     effort_limits: Vec<f64>,
+    /// Per joint: whether the last cycle's torque was clamped to its limit.
+    saturated: Vec<bool>,
 }
 
 impl Controller {
@@ -228,10 +238,10 @@ impl Controller {
                 params.rate_hz
             )));
         }
-        if !is_positive(params.torque_rate_limit_nm) {
+        if !(params.switch_blend_s >= 0.0 && params.switch_blend_s <= 1.0) {
             return Err(Error::Input(format!(
-                "torque rate limit {} N m per cycle: expected a positive value",
-                params.torque_rate_limit_nm
+                "switch blend {} s: expected 0 to 1 s",
+                params.switch_blend_s
             )));
         }
         check_mode(&mode)?;
@@ -240,7 +250,9 @@ impl Controller {
             mode,
             q_null: q0.to_vec(),
             tau_task: DVector::zeros(q0.len()),
+            blend: Blend::Idle,
             effort_limits: model.joints.iter().map(|j| j.effort_limit).collect(),
+            saturated: vec![false; q0.len()],
         })
     }
 
@@ -248,10 +260,16 @@ impl Controller {
         &self.mode
     }
 
-    /// Switches to `mode` (validated); the torque-rate limit smooths the change.
+    /// Switches to `mode` (validated); the next cycles blend the old torque into the new.
     pub fn set_mode(&mut self, mode: Mode) -> Result<()> {
         check_mode(&mode)?;
         self.mode = mode;
+        let cycles = (self.params.switch_blend_s * self.params.rate_hz).round() as u32;
+        self.blend = if cycles > 0 {
+            Blend::Pending { cycles }
+        } else {
+            Blend::Idle
+        };
         Ok(())
     }
 
@@ -262,9 +280,9 @@ impl Controller {
         }
     }
 
-    /// One cycle: the joint torques to apply (N m; gravity included, rate-limited, clamped to the
-    /// torque limits), from the model evaluated at the measured joint positions `q` and the joint
-    /// velocities `qd` (rad, rad/s).
+    /// One cycle: the joint torques to apply (N m; gravity included, blended across a mode
+    /// switch, clamped to the torque limits), from the model evaluated at the measured joint
+    /// positions `q` and the joint velocities `qd` (rad, rad/s).
     pub fn update(&mut self, d: &Dynamics, q: &[f64], qd: &[f64]) -> DVector<f64> {
         let qd_v = DVector::from_row_slice(qd);
         let wanted = match &self.mode {
@@ -275,14 +293,68 @@ impl Controller {
                 joint_position_torque(&d.mass, gains, target, q, &qd_v)
             }
         };
-        let step = self.params.torque_rate_limit_nm;
-        let delta = (wanted - &self.tau_task).map(|d| d.clamp(-step, step));
-        self.tau_task += delta;
+        self.tau_task = self.blend.apply(wanted, &self.tau_task);
         let mut tau = &self.tau_task + &d.gravity;
-        for (t, limit) in tau.iter_mut().zip(&self.effort_limits) {
+        for ((t, limit), sat) in tau
+            .iter_mut()
+            .zip(&self.effort_limits)
+            .zip(&mut self.saturated)
+        {
+            *sat = t.abs() > *limit;
             *t = t.clamp(-limit, *limit);
         }
         tau
+    }
+
+    /// Per joint: whether the last cycle asked for more torque than the joint's limit (and was
+    /// clamped to it).
+    pub fn saturated(&self) -> &[bool] {
+        &self.saturated
+    }
+}
+
+/// Bumpless transfer across a mode switch: the old mode's last task torque minus the new mode's
+/// first, faded linearly to zero.
+enum Blend {
+    /// No switch in progress.
+    Idle,
+    /// A switch happened; its offset is taken at the next cycle, over `cycles` cycles.
+    Pending { cycles: u32 },
+    /// Fading `offset` (N m): `left` of `cycles` cycles to go.
+    Fading {
+        offset: DVector<f64>,
+        left: u32,
+        cycles: u32,
+    },
+}
+
+impl Blend {
+    /// The task torque to command this cycle when the mode wants `wanted` and the last cycle
+    /// commanded `last` (both N m, without gravity).
+    fn apply(&mut self, wanted: DVector<f64>, last: &DVector<f64>) -> DVector<f64> {
+        if let Blend::Pending { cycles } = *self {
+            *self = Blend::Fading {
+                offset: last - &wanted,
+                left: cycles,
+                cycles,
+            };
+        }
+        match self {
+            Blend::Idle | Blend::Pending { .. } => wanted,
+            Blend::Fading {
+                offset,
+                left,
+                cycles,
+            } => {
+                let share = f64::from(*left) / f64::from(*cycles);
+                let tau = wanted + &*offset * share;
+                *left -= 1;
+                if *left == 0 {
+                    *self = Blend::Idle;
+                }
+                tau
+            }
+        }
     }
 }
 
@@ -440,6 +512,20 @@ mod tests {
         ImpedanceGains::uniform(5000.0, 300.0, 1.0)
             .ensure_valid()
             .unwrap();
+    }
+
+    #[test]
+    fn a_mode_switch_starts_at_the_old_torque_and_fades_to_the_new_one() {
+        let mut blend = Blend::Pending { cycles: 4 };
+        let last = DVector::from_element(2, 10.0);
+        let wanted = DVector::from_element(2, 2.0);
+        let taus: Vec<f64> = (0..6)
+            .map(|_| blend.apply(wanted.clone(), &last)[0])
+            .collect();
+        assert_eq!(taus, [10.0, 8.0, 6.0, 4.0, 2.0, 2.0]);
+        assert!(matches!(blend, Blend::Idle));
+        let mut idle = Blend::Idle;
+        assert_eq!(idle.apply(wanted.clone(), &last), wanted);
     }
 
     #[test]

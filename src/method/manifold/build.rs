@@ -398,6 +398,7 @@ mod tests {
                 SimFault {
                     time_s: 1.0,
                     reason: "runaway velocity".into(),
+                    saturated_joints: Vec::new(),
                 },
             )
         };

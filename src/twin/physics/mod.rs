@@ -19,10 +19,6 @@ use crate::twin::geometry::solid::Solid;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 
-fn is_one(v: &usize) -> bool {
-    *v == 1
-}
-
 /// Contacts are predicted at least this far (metres) in every step.
 pub const MIN_PREDICTION_M: f64 = 30e-6;
 
@@ -37,9 +33,8 @@ pub struct PhysicsParams {
     /// `num_internal_pgs_iterations`). One pass leaves the contacts of a peg pinched between
     /// opposite walls unconverged: the gear at 0.1 mm on the arm then gains energy about its axis
     /// until joint 7 runs away; four passes converge it at a third of the cost of four substeps
-    /// (docs/physics.md, "The arm at 0.1 mm"). Left out of the serialised form at its default
-    /// (1), so that cache keys made before the field existed still hold.
-    #[serde(skip_serializing_if = "is_one")]
+    /// (docs/physics.md, "The arm at 0.1 mm"). The arm cell uses four
+    /// (`twin::cell::ARM_PGS_ITERATIONS`); the free peg of `validate`, with four substeps, one.
     pub pgs_iterations: usize,
     /// rapier's length unit, metres.
     pub length_unit_m: f64,

@@ -1,0 +1,107 @@
+//! `pegtwin validate [--arm]`: the physics self-check of a pair, printed.
+
+use super::ValidateArgs;
+use pegtwin::error::Result;
+use pegtwin::method::config::TrialConfig;
+use pegtwin::method::manifold::build::SamplerConfig;
+use pegtwin::method::validate_arm::{ArmValidationReport, validate_arm};
+use pegtwin::twin::cell::CellParams;
+use pegtwin::twin::physics::PhysicsParams;
+use pegtwin::twin::validate::{FreePegGains, ValidationReport, validate};
+use serde::Serialize;
+
+/// Runs the free-peg or the arm validation; exit 0 only when every case is as expected.
+pub fn validate_command(args: ValidateArgs) -> Result<i32> {
+    let pair = args.pair.build()?;
+    let passed = if args.arm {
+        let robot = pegtwin::twin::robot::urdf::iiwa14()?;
+        let report = validate_arm(
+            &pair,
+            &robot,
+            &CellParams::default(),
+            &TrialConfig::default(),
+            &SamplerConfig::default(),
+        )?;
+        show(&report, args.json, print_arm_validation);
+        report.passed
+    } else {
+        let report = validate(&pair, &PhysicsParams::default(), FreePegGains::default());
+        show(&report, args.json, print_validation);
+        report.passed
+    };
+    Ok(if passed { 0 } else { 1 })
+}
+
+fn show<R: Serialize>(report: &R, json: bool, print: fn(&R)) {
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(report).expect("report serialises")
+        );
+    } else {
+        print(report);
+    }
+}
+
+fn verdict(passed: bool) -> &'static str {
+    if passed {
+        "all cases as expected"
+    } else {
+        "SOME CASES FAILED"
+    }
+}
+
+fn print_arm_validation(r: &ArmValidationReport) {
+    println!(
+        "validate --arm {} at {} mm clearance (penetration limit {:.4} mm; iiwa 14, {} Gauss-Seidel passes x {} substeps)",
+        r.geometry,
+        r.clearance_mm,
+        r.penetration_limit_mm,
+        r.physics.pgs_iterations,
+        r.physics.solver_iterations
+    );
+    for c in &r.cases {
+        println!(
+            "{} {:<18} pen {:.4} mm  peak |F| {:.1} N  |T| {:.2} N m  {:.0} steps/s  ({} gains)",
+            if c.passed { "PASS" } else { "FAIL" },
+            c.name,
+            c.max_penetration_mm,
+            c.peak_force_n,
+            c.peak_torque_nm,
+            c.steps_per_s,
+            c.gains
+        );
+        println!(
+            "     expected: {}\n     observed: {}",
+            c.expected, c.observed
+        );
+        if let Some(f) = &c.fault {
+            println!("     sim_fault at {:.3} s: {}", f.time_s, f.reason);
+        }
+    }
+    println!("{}", verdict(r.passed));
+}
+fn print_validation(r: &ValidationReport) {
+    println!(
+        "validate {} at {} mm clearance (penetration limit {:.4} mm)",
+        r.geometry, r.clearance_mm, r.penetration_limit_mm
+    );
+    for c in &r.cases {
+        println!(
+            "{} {:<18} pen {:.4} mm  F_solver ({:+.3}, {:+.3}, {:+.3}) N  momentum err {:.2} %  {:.0} steps/s",
+            if c.passed { "PASS" } else { "FAIL" },
+            c.name,
+            c.max_penetration_mm,
+            c.force_readout_n[0],
+            c.force_readout_n[1],
+            c.force_readout_n[2],
+            c.force_error_pct,
+            c.steps_per_s
+        );
+        println!(
+            "     expected: {}\n     observed: {}",
+            c.expected, c.observed
+        );
+    }
+    println!("{}", verdict(r.passed));
+}
