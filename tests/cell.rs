@@ -220,3 +220,26 @@ fn control_rate_is_independent_of_the_physics_step() {
         .to_string();
     assert!(e.contains("whole number of physics steps"), "{e}");
 }
+
+#[test]
+fn a_drive_asked_for_more_than_its_torque_limit_is_named_until_100_ms_after() {
+    let pair = cross(0.5e-3);
+    let params = CellParams::default();
+    let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.05);
+    let gains = ImpedanceGains::uniform(2000.0, 300.0, 0.7);
+    let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
+    cell.run(0.05);
+    assert!(cell.saturated_joints().is_empty(), "holding still");
+    // Half a radian of yaw at 300 N m/rad asks joint 7 for 150 N m; it has 40.
+    let twisted = start
+        * Iso::from_parts(
+            nalgebra::Translation3::identity(),
+            nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
+        );
+    cell.command_pose(twisted);
+    cell.run(0.01);
+    assert_eq!(cell.saturated_joints(), ["iiwa_joint_7"]);
+    cell.command_pose(start);
+    cell.run(1.0);
+    assert!(cell.saturated_joints().is_empty(), "settled back");
+}

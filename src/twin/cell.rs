@@ -360,8 +360,8 @@ impl Cell {
     }
 
     /// The joints whose commanded torque was clamped to its limit within the last
-    /// [`SATURATION_WINDOW_S`].
-    fn recently_saturated(&self) -> Vec<String> {
+    /// [`SATURATION_WINDOW_S`] (what a [`SimFault`] records as `saturated_joints`).
+    pub fn saturated_joints(&self) -> Vec<String> {
         let now = self.time_s();
         self.model
             .joints
@@ -439,7 +439,7 @@ impl Cell {
     /// more than the clearance (checked exactly every 250 steps).
     pub fn fault(&self) -> Option<SimFault> {
         let fault = |reason: String| {
-            let saturated_joints = self.recently_saturated();
+            let saturated_joints = self.saturated_joints();
             let reason = if saturated_joints.is_empty() {
                 reason
             } else {

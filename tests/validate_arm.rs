@@ -1,0 +1,46 @@
+//! `validate --arm` at a loose fit: every case of the matrix as expected, and the report says
+//! what it measured.
+
+use pegtwin::method::config::TrialConfig;
+use pegtwin::method::manifold::build::SamplerConfig;
+use pegtwin::method::validate_arm::validate_arm;
+use pegtwin::twin::cell::CellParams;
+use pegtwin::twin::geometry::{build_builtin, builtin_by_name};
+use pegtwin::twin::robot::urdf::iiwa14;
+
+#[test]
+fn the_cross_at_1_mm_passes_every_arm_case() {
+    let pair = build_builtin(builtin_by_name("cross").unwrap(), 1.0e-3).unwrap();
+    let report = validate_arm(
+        &pair,
+        &iiwa14().unwrap(),
+        &CellParams::default(),
+        &TrialConfig::default(),
+        &SamplerConfig::default(),
+    )
+    .unwrap();
+    let names: Vec<&str> = report.cases.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "aligned_insertion",
+            "lateral_press",
+            "tilted_1deg",
+            "tilted_3deg",
+            "rim_jam",
+            "floor_press",
+            "probing",
+            "sampling_episode"
+        ]
+    );
+    for c in &report.cases {
+        assert!(c.passed, "{}: {} ({:?})", c.name, c.observed, c.fault);
+        assert!(c.steps_per_s > 0.0 && c.max_penetration_mm <= 0.05, "{c:?}");
+    }
+    assert!(report.passed);
+    let floor = &report.cases[5];
+    assert!(
+        floor.peak_force_n > 2.0,
+        "the floor carries the press: {floor:?}"
+    );
+}
