@@ -4,6 +4,7 @@
 //! - its success rate falls below the baseline's 95 % Wilson lower bound;
 //! - an axis' mean absolute error exceeds `baseline x (1 + mae_rel) + mae_abs` (mm or deg);
 //! - the mean peak |Fz| of its successes exceeds `baseline x (1 + fz_rel) + fz_abs_n`;
+//! - any of its trials ended in error (raised an error or panicked);
 //! - or it is missing from the run.
 //!
 //! The tolerances live in the baseline file, so a project can loosen or tighten them where it
@@ -99,6 +100,14 @@ pub fn compare(summary: &Summary, baseline: &Baseline) -> Vec<Finding> {
         };
         out.push(Finding {
             cell: label.clone(),
+            quantity: "error_trials".into(),
+            baseline: Some(base.error_trials as f64),
+            now: Some(now.error_trials as f64),
+            limit: Some(0.0),
+            failed: now.error_trials > 0,
+        });
+        out.push(Finding {
+            cell: label.clone(),
             quantity: "success_rate".into(),
             baseline: Some(base.success_rate),
             now: Some(now.success_rate),
@@ -186,6 +195,7 @@ mod tests {
             trials: 10,
             successes,
             sim_faults: 0,
+            error_trials: 0,
             success_rate: successes as f64 / 10.0,
             success_ci95: wilson_interval(successes, 10),
             mae: Some([mae_x, 0.1, 2.0, 0.5, 0.5, 0.1]),

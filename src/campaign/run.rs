@@ -19,7 +19,7 @@ use crate::method::config::Method;
 use crate::method::manifold::Manifold;
 use crate::method::manifold::cache::{self, BuildProgress};
 use crate::method::seeds;
-use crate::method::trial::{TrialResult, run_trial};
+use crate::method::trial::{TrialResult, errored_trial, run_trial};
 use crate::twin::geometry::{self, PartPair};
 use crate::twin::robot::RobotModel;
 use rayon::prelude::*;
@@ -197,31 +197,43 @@ pub fn prepare(
     })
 }
 
+/// Runs one trial of a campaign (the real one is [`run_one`]; a test may inject another).
+type RunOne = dyn Fn(&Scenario, &Prepared, &TrialSpec) -> Result<TrialResult> + Sync;
+
 /// Runs `trials` in parallel on the current rayon pool; `on_done` sees each record as it
-/// finishes (from any thread). Returns the records in the order of `trials`.
+/// finishes (from any thread). Returns the records in the order of `trials`. A trial that
+/// raises an error or panics is recorded with outcome `error` and its message, and the others
+/// go on: one bad trial does not take a 10 000-trial campaign down.
 pub fn run_trials(
     scenario: &Scenario,
     prepared: &Prepared,
     trials: &[TrialSpec],
     on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
 ) -> Result<Vec<TrialRecord>> {
-    let cells = scenario.cells();
-    let params = scenario.cell_params();
+    run_trials_with(scenario, prepared, trials, &run_one, on_done)
+}
+
+fn run_trials_with(
+    scenario: &Scenario,
+    prepared: &Prepared,
+    trials: &[TrialSpec],
+    run: &RunOne,
+    on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
+) -> Result<Vec<TrialRecord>> {
     trials
         .par_iter()
         .map(|spec| {
-            let cell = &cells[spec.cell];
-            let key = pair_key(cell);
-            let config = scenario.trial_config(cell);
-            let result = run_trial(
-                &prepared.pairs[&key],
-                &prepared.robot,
-                &params,
-                &config,
-                prepared.manifolds.get(&key),
-                spec.seed,
-                None,
-            )?;
+            let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                run(scenario, prepared, spec)
+            }));
+            let result = match attempt {
+                Ok(Ok(result)) => result,
+                Ok(Err(e)) => errored(scenario, prepared, spec, e.to_string()),
+                Err(panic) => {
+                    let message = format!("panicked: {}", panic_message(panic.as_ref()));
+                    errored(scenario, prepared, spec, message)
+                }
+            };
             let record = TrialRecord {
                 cell: spec.cell,
                 trial: spec.trial,
@@ -231,6 +243,47 @@ pub fn run_trials(
             Ok(record)
         })
         .collect()
+}
+
+/// The trial `spec` of the campaign.
+pub fn run_one(scenario: &Scenario, prepared: &Prepared, spec: &TrialSpec) -> Result<TrialResult> {
+    let cell = &scenario.cells()[spec.cell];
+    let key = pair_key(cell);
+    run_trial(
+        &prepared.pairs[&key],
+        &prepared.robot,
+        &scenario.cell_params(),
+        &scenario.trial_config(cell),
+        prepared.manifolds.get(&key),
+        spec.seed,
+        None,
+    )
+}
+
+/// The record of trial `spec` that could not run: `message` says why.
+fn errored(
+    scenario: &Scenario,
+    prepared: &Prepared,
+    spec: &TrialSpec,
+    message: String,
+) -> TrialResult {
+    let cell = &scenario.cells()[spec.cell];
+    errored_trial(
+        &prepared.pairs[&pair_key(cell)],
+        &scenario.cell_params(),
+        &scenario.trial_config(cell),
+        spec.seed,
+        message,
+    )
+}
+
+/// The message of a panic's payload (a `&str` or a `String`, as `panic!` makes them).
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".into())
 }
 
 /// How a campaign folder is opened.
@@ -254,6 +307,16 @@ pub fn campaign(
     out: &Path,
     options: CampaignOptions,
     run: &RunOptions,
+) -> Result<CampaignRun> {
+    campaign_with(scenario, out, options, run, &run_one)
+}
+
+fn campaign_with(
+    scenario: &Scenario,
+    out: &Path,
+    options: CampaignOptions,
+    run: &RunOptions,
+    run_one: &RunOne,
 ) -> Result<CampaignRun> {
     let described = CampaignFile {
         fingerprint: scenario.fingerprint(),
@@ -289,7 +352,7 @@ pub fn campaign(
         run.progress.trial_done();
         Ok(())
     };
-    let ran = run_trials(scenario, &prepared, &pending, &append);
+    let ran = run_trials_with(scenario, &prepared, &pending, run_one, &append);
     run.progress.trials_finished();
     ran?;
     let mut records = read_records(&trials_path, false)?;
@@ -561,5 +624,66 @@ mod tests {
             let e = Shard::parse(bad).unwrap_err().to_string();
             assert!(e.contains("--shard"), "{e}");
         }
+    }
+
+    #[test]
+    fn a_campaign_records_a_trial_that_panics_or_errs_and_goes_on() {
+        let s = Scenario::parse(
+            "name = \"t\"\ntrials = 3\ngeometries = [\"cross\"]\nclearances_mm = [1.0]\nt_obs_s = [1.0]\nmethods = [\"direct\"]\ndirect_t_obs_s = 1.0\n",
+        )
+        .unwrap();
+        let dir = std::env::temp_dir().join(format!("pegtwin-errtrial-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let inject = |s: &Scenario, p: &Prepared, spec: &TrialSpec| match spec.trial {
+            1 => panic!("injected"),
+            2 => Err(Error::Input("injected error".into())),
+            _ => run_one(s, p, spec),
+        };
+        let run = RunOptions {
+            cache_dir: dir.join("cache"),
+            progress: &(),
+        };
+        let whole = CampaignOptions {
+            shard: Shard::WHOLE,
+            resume: false,
+        };
+        let out = campaign_with(&s, &dir.join("out"), whole, &run, &inject).unwrap();
+        let outcomes: Vec<&str> = out
+            .records
+            .iter()
+            .map(|r| r.result.outcome.as_str())
+            .collect();
+        assert_eq!(outcomes[1..], ["error", "error"]);
+        assert_ne!(outcomes[0], "error");
+        assert_eq!(
+            out.records[1].result.error_message.as_deref(),
+            Some("panicked: injected")
+        );
+        assert!(
+            out.records[2]
+                .result
+                .error_message
+                .as_deref()
+                .unwrap()
+                .contains("injected error")
+        );
+        let summary = crate::campaign::summary::summarise(&s, &out.records);
+        assert_eq!(summary.cells[0].error_trials, 2);
+        let mut baseline = crate::campaign::check::Baseline::from_summary(&summary);
+        baseline.cells[0].error_trials = 0;
+        let findings = crate::campaign::check::compare(&summary, &baseline);
+        assert!(
+            findings
+                .iter()
+                .any(|f| f.quantity == "error_trials" && f.failed)
+        );
+        // --resume counts them as done.
+        let again = CampaignOptions {
+            resume: true,
+            ..whole
+        };
+        let resumed = campaign_with(&s, &dir.join("out"), again, &run, &run_one).unwrap();
+        assert_eq!(resumed.ran, 0);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -65,6 +65,9 @@ pub struct CellSummary {
     pub trials: usize,
     pub successes: usize,
     pub sim_faults: usize,
+    /// Trials that raised an error or panicked (outcome `error`; counted as not successful).
+    #[serde(default)]
+    pub error_trials: usize,
     pub success_rate: f64,
     /// 95 % Wilson interval of the success rate.
     pub success_ci95: [f64; 2],
@@ -180,6 +183,10 @@ fn summarise_cell(cell: Condition, rs: &[&TrialRecord]) -> CellSummary {
         trials: n,
         successes,
         sim_faults: rs.iter().filter(|r| r.result.fault.is_some()).count(),
+        error_trials: rs
+            .iter()
+            .filter(|r| r.result.error_message.is_some())
+            .count(),
         success_rate: if n == 0 {
             0.0
         } else {
@@ -223,6 +230,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
         "trials",
         "successes",
         "sim_faults",
+        "error_trials",
         "success_rate",
         "ci95_low",
         "ci95_high",
@@ -255,6 +263,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
             c.trials.to_string(),
             c.successes.to_string(),
             c.sim_faults.to_string(),
+            c.error_trials.to_string(),
             format!("{:.4}", c.success_rate),
             format!("{:.4}", c.success_ci95[0]),
             format!("{:.4}", c.success_ci95[1]),
@@ -313,6 +322,12 @@ pub fn summary_table(summary: &Summary) -> String {
             mae(5),
             fz(c.peak_fz_success_n),
             fz(c.peak_fz_failure_n),
+        );
+    }
+    let errors: usize = summary.cells.iter().map(|c| c.error_trials).sum();
+    if errors > 0 {
+        out += &format!(
+            "{errors} trial(s) ended in error (a bug or an input the checks missed): outcome \"error\" and error_message in trials.jsonl\n"
         );
     }
     out

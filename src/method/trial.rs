@@ -116,12 +116,17 @@ pub struct TrialResult {
     pub t_obs_s: f64,
     /// The true hole offset from nominal, mm and deg.
     pub offset: [f64; 6],
-    /// `success`, `failure` or `sim_fault`.
+    /// `success`, `failure`, `sim_fault`, or `error` (the trial could not run to its end:
+    /// `error_message` says why).
     pub outcome: String,
     /// Why the trial stopped before inserting, if it did.
     pub stopped: Option<String>,
     pub success: bool,
     pub fault: Option<SimFault>,
+    /// Why the trial raised an error or panicked (outcome `error`): a bug or an input the
+    /// checks missed, recorded so that a campaign goes on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error_message: Option<String>,
     /// Estimated `base_T_hole` (m, rad), manifold method only.
     pub estimate: Option<[f64; 6]>,
     pub errors: Option<AxisErrors>,
@@ -243,6 +248,7 @@ impl Setup {
             stopped: None,
             success: false,
             fault,
+            error_message: None,
             estimate: None,
             errors: None,
             final_depth_mm: None,
@@ -291,6 +297,23 @@ impl Setup {
             times: stages.times(),
             ..self.common(pair, config, fault, started)
         }
+    }
+}
+
+/// The record of a trial that raised an error or panicked with `message`: what its setup
+/// decides (seed, pair, offset), outcome `error`.
+pub fn errored_trial(
+    pair: &PartPair,
+    params: &CellParams,
+    config: &TrialConfig,
+    seed: u64,
+    message: String,
+) -> TrialResult {
+    let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
+    TrialResult {
+        outcome: "error".into(),
+        error_message: Some(message),
+        ..setup.common(pair, config, None, Instant::now())
     }
 }
 
