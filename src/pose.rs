@@ -9,6 +9,7 @@
 //! to *scaled coordinates* in millimetre-equivalents, positions in mm and angles in degrees times
 //! `mm_per_deg` (default 1: one millimetre counts like one degree, as the paper's authors did).
 
+use crate::error::{Error, Result};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
@@ -60,6 +61,32 @@ impl Pose6 {
         self.0.iter().all(|v| v.is_finite())
     }
 
+    /// Refuses a pose that no robot cell holds: a coordinate beyond [`MAX_COORDINATE_M`] or an
+    /// angle beyond [`MAX_ANGLE_RAD`] (non-finite included) is a unit error or corrupt data,
+    /// named with `what` and the axis.
+    pub fn ensure_plausible(&self, what: &str) -> Result<()> {
+        const AXES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+        for (i, v) in self.0.iter().enumerate() {
+            let (limit, unit) = if i < 3 {
+                (MAX_COORDINATE_M, "m")
+            } else {
+                (MAX_ANGLE_RAD, "rad")
+            };
+            if !(v.is_finite() && v.abs() <= limit) {
+                let shown = if v.abs() < 1e6 {
+                    v.to_string()
+                } else {
+                    format!("{v:e}")
+                };
+                return Err(Error::Input(format!(
+                    "{what}: {} = {shown} {unit}: expected a finite value within +-{limit:.4} {unit} (metres and radians)",
+                    AXES[i]
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// Position in millimetres and angles in degrees, for people to read.
     pub fn to_mm_deg(&self) -> [f64; 6] {
         let [x, y, z, r, p, w] = self.0;
@@ -73,6 +100,14 @@ impl Pose6 {
         ]
     }
 }
+
+/// Largest plausible coordinate of a pose in a robot cell, m: beyond it a value is a unit error
+/// (millimetres read as metres) or corrupt data.
+pub const MAX_COORDINATE_M: f64 = 10.0;
+/// Largest plausible angle of a roll-pitch-yaw pose, rad (writers keep angles within +-pi).
+pub const MAX_ANGLE_RAD: f64 = 2.0 * std::f64::consts::PI;
+/// The range of [`PoseMetric::mm_per_deg`] that weighs rotation and translation sensibly.
+pub const MM_PER_DEG_RANGE: (f64, f64) = (1e-3, 1e3);
 
 /// The metric of the 6-D pose space: how many millimetres one degree counts for.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -88,6 +123,19 @@ impl Default for PoseMetric {
 }
 
 impl PoseMetric {
+    /// Refuses a weight outside [`MM_PER_DEG_RANGE`] (zero or negative weights make every pose
+    /// look alike; huge ones overflow the search).
+    pub fn ensure_valid(&self) -> Result<()> {
+        let (lo, hi) = MM_PER_DEG_RANGE;
+        if !(self.mm_per_deg >= lo && self.mm_per_deg <= hi) {
+            return Err(Error::Input(format!(
+                "mm_per_deg {}: expected {lo} to {hi} (millimetres that one degree counts for)",
+                self.mm_per_deg
+            )));
+        }
+        Ok(())
+    }
+
     /// Millimetre-equivalents per radian.
     fn mm_per_rad(&self) -> f64 {
         self.mm_per_deg * 180.0 / std::f64::consts::PI

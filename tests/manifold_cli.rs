@@ -323,3 +323,57 @@ fn manifold_build_rejects_bad_input() {
         assert!(!std::path::Path::new(out).exists(), "no output on error");
     }
 }
+
+/// Values near the end of f64 used to panic in the nearest-neighbour search (issue 18); they are
+/// refused up front, naming what is implausible.
+#[test]
+fn implausible_values_are_refused_not_panicked_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, obs) = synth(dir.path());
+    let far = dir.path().join("far.csv");
+    let mut text = std::fs::read_to_string(&obs).unwrap();
+    text.push_str("0.6,0.05,1e308,0,0,0.3\n");
+    std::fs::write(&far, text).unwrap();
+    let good_init = "0.603,0.048,0.203,0.05,-0.04,0.35";
+    let register = |obs: &Path, init: &str, extra: &[&str]| {
+        let mut args = vec![
+            "register",
+            "--manifold",
+            s(&m),
+            "--observations",
+            s(obs),
+            "--init",
+            init,
+        ];
+        args.extend_from_slice(extra);
+        pegtwin(&args)
+    };
+    let cases = [
+        (
+            register(&obs, "1e308,0,0,0,0,0", &[]),
+            "initial estimate: x = ",
+        ),
+        (register(&obs, good_init, &["--sigma-mm", "1e308"]), "sigma"),
+        (register(&far, good_init, &[]), "z = 1e308 m"),
+        (
+            pegtwin(&["robot", "stiffness", "--force-n", "1e308"]),
+            "push force",
+        ),
+        (
+            pegtwin(&[
+                "trial",
+                "--geometry",
+                "cross",
+                "--clearance-mm",
+                "0.5",
+                "--t-obs",
+                "1e308",
+            ]),
+            "t_obs",
+        ),
+    ];
+    for (o, expected) in cases {
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(expected), "{}", stderr(&o));
+    }
+}

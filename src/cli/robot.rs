@@ -261,13 +261,6 @@ fn stiffness_command(args: &StiffnessArgs) -> Result<i32> {
         args.damping_ratio,
     );
     gains.ensure_valid()?;
-    for (flag, v) in [("--force-n", args.force_n), ("--torque-nm", args.torque_nm)] {
-        if !pegtwin::twin::control::is_positive(v) {
-            return Err(Error::Input(format!(
-                "{flag} {v}: expected a positive push"
-            )));
-        }
-    }
     let pair = build_builtin(builtin_by_name(&args.geometry)?, 0.5e-3)?;
     geometry::check_clearance(pair.clearance_m)?;
     let test = PushTest {

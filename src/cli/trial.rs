@@ -3,7 +3,7 @@
 use super::choices::{MethodArg, StartArg};
 use super::progress::Bars;
 use clap::Args;
-use pegtwin::error::{Error, Result};
+use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::Manifold;
 use pegtwin::method::manifold::cache::{self, ManifoldSpec};
@@ -63,16 +63,6 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
     let clearance_m = args.clearance_mm * 1e-3;
     geometry::check_clearance(clearance_m)?;
     let pair = geometry::build_builtin(geometry::builtin_by_name(&args.geometry)?, clearance_m)?;
-    for (flag, v) in [
-        ("--offset-mm", args.offset_mm),
-        ("--offset-deg", args.offset_deg),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(Error::Input(format!(
-                "{flag} {v}: expected a half-range >= 0"
-            )));
-        }
-    }
     let (m, a) = (args.offset_mm * 1e-3, args.offset_deg.to_radians());
     let config = TrialConfig {
         method: args.method.into(),

@@ -28,6 +28,12 @@ pub enum Start {
     Above,
 }
 
+/// Longest observation a trial accepts, s.
+pub const MAX_T_OBS_S: f64 = 600.0;
+/// Largest half-range of the hole's offset a trial accepts: 50 mm and 45 deg (beyond, the peg
+/// does not start in the hole's reach).
+pub const MAX_OFFSET: (f64, f64) = (0.05, std::f64::consts::FRAC_PI_4);
+
 /// Everything a trial does.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -117,21 +123,29 @@ impl Default for TrialConfig {
 impl TrialConfig {
     /// Rejects values a trial cannot run with, naming the field.
     pub fn ensure_valid(&self) -> Result<()> {
-        if !is_positive(self.t_obs_s) {
+        if !(self.t_obs_s > 0.0 && self.t_obs_s <= MAX_T_OBS_S) {
             return Err(Error::Input(format!(
-                "t_obs {} s: expected a positive time",
+                "t_obs {} s: expected more than 0 and at most {MAX_T_OBS_S} s",
                 self.t_obs_s
             )));
         }
-        if self
-            .offset_range
-            .iter()
-            .any(|v| !(v.is_finite() && *v >= 0.0))
-        {
-            return Err(Error::Input(format!(
-                "offset range {:?}: expected finite half-ranges >= 0",
-                self.offset_range
-            )));
+        let (max_m, max_rad) = MAX_OFFSET;
+        for (i, v) in self.offset_range.iter().enumerate() {
+            let (limit, shown, unit) = if i < 3 {
+                (max_m, v * 1e3, "mm")
+            } else {
+                (max_rad, v.to_degrees(), "deg")
+            };
+            if !(*v >= 0.0 && *v <= limit) {
+                let most = if i < 3 {
+                    limit * 1e3
+                } else {
+                    limit.to_degrees()
+                };
+                return Err(Error::Input(format!(
+                    "offset half-range {shown} {unit}: expected 0 to {most:.0} {unit}"
+                )));
+            }
         }
         if !(self.insert_overshoot_m >= 0.0 && self.insert_overshoot_m <= 0.05) {
             return Err(Error::Input(format!(

@@ -166,9 +166,11 @@ impl RegistrationConfig {
         if !(self.tolerance_mm >= 0.0 && self.tolerance_mm.is_finite()) {
             return bad("tolerance", "a finite number >= 0");
         }
-        let non_negative = |v: f64| v >= 0.0 && v.is_finite();
-        if !(non_negative(self.sigma_m) && non_negative(self.sigma_rad)) {
-            return bad("sigma", "finite numbers >= 0");
+        if !(self.sigma_m >= 0.0 && self.sigma_m <= MAX_SIGMA_M) {
+            return bad("sigma (position)", "0 to 1000 mm");
+        }
+        if !(self.sigma_rad >= 0.0 && self.sigma_rad <= std::f64::consts::PI) {
+            return bad("sigma (orientation)", "0 to 180 deg");
         }
         if self.normal_k < 7 {
             return bad("k", "at least 7 (a normal in 6-D needs 7 points)");
@@ -179,6 +181,9 @@ impl RegistrationConfig {
         Ok(())
     }
 }
+
+/// Largest spread of the restarts' initial positions, m.
+const MAX_SIGMA_M: f64 = 1.0;
 
 /// The result of one restart.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -227,12 +232,7 @@ pub fn register(
 ) -> Result<Registration> {
     cfg.ensure_valid()?;
     check_observations(observations, cfg.normal_k)?;
-    if !init.is_finite() {
-        return Err(Error::Input(format!(
-            "initial estimate {:?} is not finite",
-            init.0
-        )));
-    }
+    init.ensure_plausible("initial estimate")?;
     let t0 = Instant::now();
     let obs: Vec<Iso> = observations.iter().map(Pose6::to_iso).collect();
     let init = init.to_iso();
@@ -263,11 +263,8 @@ fn check_observations(observations: &[Pose6], k: usize) -> Result<()> {
             observations.len()
         )));
     }
-    if let Some(i) = observations.iter().position(|p| !p.is_finite()) {
-        return Err(Error::Input(format!(
-            "observation {i} is not finite: {:?}",
-            observations[i].0
-        )));
+    for (i, p) in observations.iter().enumerate() {
+        p.ensure_plausible(&format!("observation {i}"))?;
     }
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! Robot diagnostics a robotics user expects before trusting the twin: the static stiffness the
 //! arm really shows under its Cartesian impedance, measured in simulation by pushing the TCP.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use crate::twin::control::{ImpedanceGains, tcp_error};
 use crate::twin::geometry::PartPair;
@@ -22,6 +22,30 @@ pub struct PushTest {
     pub torque_nm: f64,
     /// Time to settle before and after the push, s.
     pub settle_s: f64,
+}
+
+/// Pushes a diagnostic accepts: up to 500 N and 100 N m (twice the arm's rated payload, and
+/// more than its wrist drives give).
+pub const MAX_PUSH: (f64, f64) = (500.0, 100.0);
+
+impl PushTest {
+    /// Refuses pushes that are not positive or beyond [`MAX_PUSH`], naming the value.
+    pub fn ensure_valid(&self) -> Result<()> {
+        let (max_n, max_nm) = MAX_PUSH;
+        if !(self.force_n > 0.0 && self.force_n <= max_n) {
+            return Err(Error::Input(format!(
+                "push force {} N: expected more than 0 and at most {max_n} N",
+                self.force_n
+            )));
+        }
+        if !(self.torque_nm > 0.0 && self.torque_nm <= max_nm) {
+            return Err(Error::Input(format!(
+                "push torque {} N m: expected more than 0 and at most {max_nm} N m",
+                self.torque_nm
+            )));
+        }
+        Ok(())
+    }
 }
 
 impl Default for PushTest {
@@ -60,6 +84,7 @@ pub fn measure_stiffness(
     test: PushTest,
 ) -> Result<Vec<AxisStiffness>> {
     gains.ensure_valid()?;
+    test.ensure_valid()?;
     let start = tcp_in_hole(&nominal_hole_pose(pair, params), -0.1);
     (0..6)
         .into_par_iter()
@@ -79,6 +104,12 @@ pub fn measure_stiffness(
             let t = r * w_tcp.fixed_rows::<3>(3).into_owned();
             cell.set_disturbance(Some(Vector6::new(f.x, f.y, f.z, t.x, t.y, t.z)));
             cell.run(test.settle_s);
+            if let Some(f) = cell.fault() {
+                return Err(Error::Input(format!(
+                    "a push of {magnitude} on the {} axis does not settle under these gains ({} at {:.3} s): use a smaller push or stiffer gains",
+                    AXIS_NAMES[axis], f.reason, f.time_s
+                )));
+            }
             let deflection = tcp_error(&cell.truth().tcp_pose(), &before)[axis];
             let measured = magnitude / deflection;
             let commanded = gains.stiffness[axis];

@@ -387,6 +387,7 @@ impl Manifold {
         normals: Option<Vec<[f64; 6]>>,
         meta: ManifoldMeta,
     ) -> Result<Self> {
+        meta.metric.ensure_valid()?;
         check_points(&points, meta.normal_k)?;
         if let Some(n) = normals.as_ref().filter(|n| n.len() != points.len()) {
             return Err(Error::Input(format!(
@@ -394,6 +395,9 @@ impl Manifold {
                 points.len(),
                 n.len()
             )));
+        }
+        if let Some(n) = &normals {
+            check_normals(n)?;
         }
         let scaled: Vec<[f64; 6]> = points.iter().map(|p| meta.metric.scaled(p)).collect();
         let index = ScaledIndex::new(&scaled);
@@ -484,11 +488,21 @@ fn check_points(points: &[Pose6], k: usize) -> Result<()> {
             u32::MAX
         )));
     }
-    if let Some(i) = points.iter().position(|p| !p.is_finite()) {
-        return Err(Error::Input(format!(
-            "manifold point {i} is not finite: {:?}",
-            points[i].0
-        )));
+    for (i, p) in points.iter().enumerate() {
+        p.ensure_plausible(&format!("manifold point {i}"))?;
+    }
+    Ok(())
+}
+
+/// Normals read from a file must be unit vectors (NaN or zero normals give confident nonsense).
+fn check_normals(normals: &[[f64; 6]]) -> Result<()> {
+    for (i, n) in normals.iter().enumerate() {
+        let norm = n.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if (norm - 1.0).abs() > 1e-3 || norm.is_nan() {
+            return Err(Error::Input(format!(
+                "manifold normal {i} has length {norm}: expected a unit vector (recompute the normals: import the poses without them)"
+            )));
+        }
     }
     Ok(())
 }

@@ -372,13 +372,14 @@ pub struct Dynamics {
 }
 
 impl Dynamics {
-    /// `M^-1` (Cholesky; M is positive definite by construction).
+    /// `M^-1` (Cholesky; M is positive definite by construction for a finite `q`). A joint state
+    /// that is no longer finite gives a NaN matrix, which the cell reports as a `sim_fault`.
     pub fn mass_inverse(&self) -> DMatrix<f64> {
+        let n = self.mass.nrows();
         self.mass
             .clone()
             .cholesky()
-            .expect("M(q) is positive definite")
-            .inverse()
+            .map_or_else(|| DMatrix::from_element(n, n, f64::NAN), |c| c.inverse())
     }
 
     /// Cartesian inertia at the TCP, `(J M^-1 J^T)^-1` (6 x 6, base frame), from `M^-1`, inverted
