@@ -180,8 +180,12 @@ pub fn findings_table(findings: &[Finding]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::campaign::run::{
+        CampaignOptions, Prepared, RunOptions, Shard, TrialSpec, campaign_with, run_one,
+    };
     use crate::campaign::scenario::Condition;
-    use crate::campaign::summary::{MeanStd, wilson_interval};
+    use crate::campaign::scenario::Scenario;
+    use crate::campaign::summary::{MeanStd, summarise, wilson_interval};
     use crate::method::config::Method;
 
     fn cell(successes: usize, mae_x: f64, fz: f64) -> CellSummary {
@@ -241,5 +245,66 @@ mod tests {
         let mut other = cell(10, 0.1, 20.0);
         other.cell.t_obs_s = 8.0;
         assert_eq!(failed(other), ["cell"]);
+    }
+
+    #[test]
+    fn a_campaign_records_a_trial_that_panics_or_errs_and_goes_on() {
+        let s = Scenario::parse(
+            "name = \"t\"\ntrials = 3\ngeometries = [\"cross\"]\nclearances_mm = [1.0]\nt_obs_s = [1.0]\nmethods = [\"direct\"]\ndirect_t_obs_s = 1.0\n",
+        )
+        .unwrap();
+        let dir = std::env::temp_dir().join(format!("pegtwin-errtrial-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let inject = |s: &Scenario, p: &Prepared, spec: &TrialSpec| match spec.trial {
+            1 => panic!("injected"),
+            2 => Err(Error::Input("injected error".into())),
+            _ => run_one(s, p, spec),
+        };
+        let run = RunOptions {
+            cache_dir: dir.join("cache"),
+            progress: &(),
+        };
+        let whole = CampaignOptions {
+            shard: Shard::WHOLE,
+            resume: false,
+        };
+        let out = campaign_with(&s, &dir.join("out"), whole, &run, &inject).unwrap();
+        let outcomes: Vec<&str> = out
+            .records
+            .iter()
+            .map(|r| r.result.outcome.as_str())
+            .collect();
+        assert_eq!(outcomes[1..], ["error", "error"]);
+        assert_ne!(outcomes[0], "error");
+        assert_eq!(
+            out.records[1].result.error_message.as_deref(),
+            Some("panicked: injected")
+        );
+        assert!(
+            out.records[2]
+                .result
+                .error_message
+                .as_deref()
+                .unwrap()
+                .contains("injected error")
+        );
+        let summary = summarise(&s, &out.records);
+        assert_eq!(summary.cells[0].error_trials, 2);
+        let mut baseline = Baseline::from_summary(&summary);
+        baseline.cells[0].error_trials = 0;
+        let findings = compare(&summary, &baseline);
+        assert!(
+            findings
+                .iter()
+                .any(|f| f.quantity == "error_trials" && f.failed)
+        );
+        // --resume counts them as done.
+        let again = CampaignOptions {
+            resume: true,
+            ..whole
+        };
+        let resumed = campaign_with(&s, &dir.join("out"), again, &run, &run_one).unwrap();
+        assert_eq!(resumed.ran, 0);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

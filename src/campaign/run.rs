@@ -198,7 +198,7 @@ pub fn prepare(
 }
 
 /// Runs one trial of a campaign (the real one is [`run_one`]; a test may inject another).
-type RunOne = dyn Fn(&Scenario, &Prepared, &TrialSpec) -> Result<TrialResult> + Sync;
+pub(crate) type RunOne = dyn Fn(&Scenario, &Prepared, &TrialSpec) -> Result<TrialResult> + Sync;
 
 /// Runs `trials` in parallel on the current rayon pool; `on_done` sees each record as it
 /// finishes (from any thread). Returns the records in the order of `trials`. A trial that
@@ -311,7 +311,7 @@ pub fn campaign(
     campaign_with(scenario, out, options, run, &run_one)
 }
 
-fn campaign_with(
+pub(crate) fn campaign_with(
     scenario: &Scenario,
     out: &Path,
     options: CampaignOptions,
@@ -624,66 +624,5 @@ mod tests {
             let e = Shard::parse(bad).unwrap_err().to_string();
             assert!(e.contains("--shard"), "{e}");
         }
-    }
-
-    #[test]
-    fn a_campaign_records_a_trial_that_panics_or_errs_and_goes_on() {
-        let s = Scenario::parse(
-            "name = \"t\"\ntrials = 3\ngeometries = [\"cross\"]\nclearances_mm = [1.0]\nt_obs_s = [1.0]\nmethods = [\"direct\"]\ndirect_t_obs_s = 1.0\n",
-        )
-        .unwrap();
-        let dir = std::env::temp_dir().join(format!("pegtwin-errtrial-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let inject = |s: &Scenario, p: &Prepared, spec: &TrialSpec| match spec.trial {
-            1 => panic!("injected"),
-            2 => Err(Error::Input("injected error".into())),
-            _ => run_one(s, p, spec),
-        };
-        let run = RunOptions {
-            cache_dir: dir.join("cache"),
-            progress: &(),
-        };
-        let whole = CampaignOptions {
-            shard: Shard::WHOLE,
-            resume: false,
-        };
-        let out = campaign_with(&s, &dir.join("out"), whole, &run, &inject).unwrap();
-        let outcomes: Vec<&str> = out
-            .records
-            .iter()
-            .map(|r| r.result.outcome.as_str())
-            .collect();
-        assert_eq!(outcomes[1..], ["error", "error"]);
-        assert_ne!(outcomes[0], "error");
-        assert_eq!(
-            out.records[1].result.error_message.as_deref(),
-            Some("panicked: injected")
-        );
-        assert!(
-            out.records[2]
-                .result
-                .error_message
-                .as_deref()
-                .unwrap()
-                .contains("injected error")
-        );
-        let summary = crate::campaign::summary::summarise(&s, &out.records);
-        assert_eq!(summary.cells[0].error_trials, 2);
-        let mut baseline = crate::campaign::check::Baseline::from_summary(&summary);
-        baseline.cells[0].error_trials = 0;
-        let findings = crate::campaign::check::compare(&summary, &baseline);
-        assert!(
-            findings
-                .iter()
-                .any(|f| f.quantity == "error_trials" && f.failed)
-        );
-        // --resume counts them as done.
-        let again = CampaignOptions {
-            resume: true,
-            ..whole
-        };
-        let resumed = campaign_with(&s, &dir.join("out"), again, &run, &run_one).unwrap();
-        assert_eq!(resumed.ran, 0);
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -3,8 +3,8 @@
 use super::choices::{MethodArg, StartArg};
 use super::progress::Bars;
 use clap::Args;
-use pegtwin::error::Result;
-use pegtwin::method::config::TrialConfig;
+use pegtwin::error::{Error, Result};
+use pegtwin::method::config::{MAX_OFFSET, TrialConfig};
 use pegtwin::method::manifold::Manifold;
 use pegtwin::method::manifold::cache::{self, ManifoldSpec};
 use pegtwin::method::manifold::file;
@@ -63,6 +63,17 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
     let clearance_m = args.clearance_mm * 1e-3;
     geometry::check_clearance(clearance_m)?;
     let pair = geometry::build_builtin(geometry::builtin_by_name(&args.geometry)?, clearance_m)?;
+    let (max_m, max_rad) = MAX_OFFSET;
+    for (flag, v, max) in [
+        ("--offset-mm", args.offset_mm, max_m * 1e3),
+        ("--offset-deg", args.offset_deg, max_rad.to_degrees()),
+    ] {
+        if !(v >= 0.0 && v <= max) {
+            return Err(Error::Input(format!(
+                "{flag} {v}: expected a half-range from 0 to {max:.0}"
+            )));
+        }
+    }
     let (m, a) = (args.offset_mm * 1e-3, args.offset_deg.to_radians());
     let config = TrialConfig {
         method: args.method.into(),
