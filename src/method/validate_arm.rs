@@ -23,7 +23,7 @@ use crate::twin::geometry::PartPair;
 use crate::twin::physics::PhysicsParams;
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::robot::RobotModel;
-use crate::twin::validate::PENETRATION_FRACTION;
+use crate::twin::validate::{PENETRATION_FRACTION, lift_until_free};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 use std::ops::ControlFlow;
@@ -299,15 +299,6 @@ fn yaw(rad: f64) -> Iso {
 /// `hole_T_tcp` upright at `(x, y, z)`.
 fn at(x: f64, y: f64, z: f64) -> Iso {
     Iso::translation(x, y, z)
-}
-
-/// Raises `hole_T_tcp` in 10 micrometre steps until the peg does not penetrate the hole.
-fn lift_until_free(probe: &PenetrationProbe, pair: &PartPair, base_t_hole: &Iso, pose: Iso) -> Iso {
-    let mut p = pose;
-    while probe.max_penetration(&pair.peg, &(base_t_hole * p)) > 0.0 {
-        p.translation.vector.z += 10e-6;
-    }
-    p
 }
 
 /// The tip at the floor: the judge of the insertion cases.

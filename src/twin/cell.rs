@@ -198,14 +198,6 @@ pub struct SimFault {
     pub saturated_joints: Vec<String>,
 }
 
-impl SimFault {
-    /// Whether the commanded motion, not the physics, is the fault's cause: a joint's torque sat
-    /// at its limit just before it.
-    pub fn commanded(&self) -> bool {
-        !self.saturated_joints.is_empty()
-    }
-}
-
 /// Steps between exact penetration checks.
 const PENETRATION_CHECK_STEPS: u64 = 250;
 /// A joint faster than this multiple of its speed limit is a runaway.

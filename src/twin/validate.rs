@@ -205,14 +205,16 @@ fn upright(x: f64, y: f64, z: f64) -> Isometry3<f64> {
     Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::identity())
 }
 
-/// Raises a start pose in 10 micrometre steps until the peg does not penetrate the hole.
-fn lift_until_free(
+/// Raises a start pose `hole_T_peg` in 10 micrometre steps along the hole's axis until the peg
+/// does not penetrate the hole posed at `base_t_hole` (the pose `probe` was made with).
+pub fn lift_until_free(
     probe: &PenetrationProbe,
     pair: &PartPair,
+    base_t_hole: &Isometry3<f64>,
     pose: Isometry3<f64>,
 ) -> Isometry3<f64> {
     let mut p = pose;
-    while probe.max_penetration(&pair.peg, &p) > 0.0 {
+    while probe.max_penetration(&pair.peg, &(base_t_hole * p)) > 0.0 {
         p.translation.vector.z += 10e-6;
     }
     p
@@ -244,7 +246,7 @@ fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec
             Translation3::new(0.0, 0.0, -2e-3),
             UnitQuaternion::from_euler_angles(deg.to_radians(), 0.0, 0.0),
         );
-        lift_until_free(probe, pair, tilt)
+        lift_until_free(probe, pair, &Isometry3::identity(), tilt)
     };
     let rim_offset = (1.5e-3f64).max(3.0 * pair.clearance_m);
     let wall_offset = 1e-3;
@@ -296,7 +298,12 @@ fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec
                 "resting on the rim {:.1} mm off the axis, pushed down to 5 mm below it at 20 mm/s: jams, no entry (tip stays above -0.05 mm)",
                 rim_offset * 1e3
             ),
-            start: lift_until_free(probe, pair, upright(rim_offset, 0.0, 0.0)),
+            start: lift_until_free(
+                probe,
+                pair,
+                &Isometry3::identity(),
+                upright(rim_offset, 0.0, 0.0),
+            ),
             target: Box::new(move |t| Vector3::new(rim_offset, 0.0, (-speed * t).max(-5e-3))),
             duration_s: 1.0,
             judge: Box::new(|tip, min_z, _| {
