@@ -129,7 +129,7 @@ impl PoseMetric {
         let (lo, hi) = MM_PER_DEG_RANGE;
         if !(self.mm_per_deg >= lo && self.mm_per_deg <= hi) {
             return Err(Error::Input(format!(
-                "mm_per_deg {}: expected {lo} to {hi} (millimetres that one degree counts for)",
+                "mm_per_deg {:?}: expected {lo} to {hi} (millimetres that one degree counts for)",
                 self.mm_per_deg
             )));
         }

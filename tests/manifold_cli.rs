@@ -193,7 +193,7 @@ fn bad_csv_and_flags_are_clear_errors_with_exit_2() {
         ("--init", "0.6,0.05,0.2,0,0", "six comma-separated numbers"),
         ("--init", "0.6,0.05,0.2,0,0,yaw", "yaw = `yaw`"),
         ("--restarts", "0", "restarts"),
-        ("--k", "3", "at least 7"),
+        ("--k", "3", "7 to 1000"),
     ] {
         let mut args = vec!["register", "--manifold", s(&m), "--observations", s(&few)];
         if flag != "--init" {

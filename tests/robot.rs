@@ -392,7 +392,9 @@ fn loader_errors_name_the_file_element_and_reason() {
     std::fs::write(&path, bad_limit).unwrap();
     let e = load(&path, &[]).err().unwrap().to_string();
     assert!(
-        e.contains("line 7") && e.contains("<limit lower=\"x\">") && e.contains("1 finite number"),
+        e.contains("line 7")
+            && e.contains("<limit lower=\"x\">")
+            && e.contains("expected 1 number in"),
         "{e}"
     );
 }

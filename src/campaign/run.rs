@@ -200,49 +200,59 @@ pub fn prepare(
 /// Runs one trial of a campaign (the real one is [`run_one`]; a test may inject another).
 pub(crate) type RunOne = dyn Fn(&Scenario, &Prepared, &TrialSpec) -> Result<TrialResult> + Sync;
 
-/// Runs `trials` in parallel on the current rayon pool; `on_done` sees each record as it
-/// finishes (from any thread). Returns the records in the order of `trials`. A trial that
-/// raises an error or panics is recorded with outcome `error` and its message, and the others
-/// go on: one bad trial does not take a 10 000-trial campaign down.
+/// Runs `trials` in parallel on the current rayon pool and returns their records in the order of
+/// `trials` (for `tune`, which keeps them; a campaign streams them instead, see
+/// [`stream_trials_with`]). A trial that raises an error or panics is recorded with outcome
+/// `error` and its message, and the others go on.
 pub fn run_trials(
     scenario: &Scenario,
     prepared: &Prepared,
     trials: &[TrialSpec],
-    on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
-) -> Result<Vec<TrialRecord>> {
-    run_trials_with(scenario, prepared, trials, &run_one, on_done)
+) -> Vec<TrialRecord> {
+    trials
+        .par_iter()
+        .map(|spec| guarded_trial(scenario, prepared, spec, &run_one))
+        .collect()
 }
 
-fn run_trials_with(
+/// Runs `trials` in parallel and hands each record to `on_done` as it finishes (from any thread),
+/// keeping none: memory stays flat however many trials a campaign runs.
+fn stream_trials_with(
     scenario: &Scenario,
     prepared: &Prepared,
     trials: &[TrialSpec],
     run: &RunOne,
     on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
-) -> Result<Vec<TrialRecord>> {
+) -> Result<()> {
     trials
         .par_iter()
-        .map(|spec| {
-            let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                run(scenario, prepared, spec)
-            }));
-            let result = match attempt {
-                Ok(Ok(result)) => result,
-                Ok(Err(e)) => errored(scenario, prepared, spec, e.to_string()),
-                Err(panic) => {
-                    let message = format!("panicked: {}", panic_message(panic.as_ref()));
-                    errored(scenario, prepared, spec, message)
-                }
-            };
-            let record = TrialRecord {
-                cell: spec.cell,
-                trial: spec.trial,
-                result,
-            };
-            on_done(&record)?;
-            Ok(record)
-        })
-        .collect()
+        .try_for_each(|spec| on_done(&guarded_trial(scenario, prepared, spec, run)))
+}
+
+/// One trial's record, whatever happens in it: an error or a panic becomes outcome `error` with
+/// its message, so one bad trial does not take a 10 000-trial campaign down.
+fn guarded_trial(
+    scenario: &Scenario,
+    prepared: &Prepared,
+    spec: &TrialSpec,
+    run: &RunOne,
+) -> TrialRecord {
+    let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        run(scenario, prepared, spec)
+    }));
+    let result = match attempt {
+        Ok(Ok(result)) => result,
+        Ok(Err(e)) => errored(scenario, prepared, spec, e.to_string()),
+        Err(panic) => {
+            let message = format!("panicked: {}", panic_message(panic.as_ref()));
+            errored(scenario, prepared, spec, message)
+        }
+    };
+    TrialRecord {
+        cell: spec.cell,
+        trial: spec.trial,
+        result,
+    }
 }
 
 /// The trial `spec` of the campaign.
@@ -323,7 +333,7 @@ pub(crate) fn campaign_with(
         shard: options.shard,
         scenario: scenario.clone(),
     };
-    open_folder(out, &described, options.resume)?;
+    let is_new = check_folder(out, &described, options.resume)?;
     let trials_path = out.join(TRIALS_FILE);
     let done = read_records(&trials_path, true)?;
     let finished: BTreeSet<(usize, usize)> = done.iter().map(|r| (r.cell, r.trial)).collect();
@@ -334,14 +344,19 @@ pub(crate) fn campaign_with(
         .copied()
         .collect();
     check_records_belong(&done, &wanted, &trials_path)?;
+    let resumed = done.len();
+    drop(done);
     let prepared = prepare(scenario, &pending, run)?;
+    if is_new {
+        create_folder(out, &described)?;
+    }
     let file = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(&trials_path)
         .map_err(|e| Error::file(&trials_path, format!("cannot open for appending: {e}")))?;
     let writer = Mutex::new(file);
-    run.progress.trials_started(wanted.len(), done.len());
+    run.progress.trials_started(wanted.len(), resumed);
     let append = |record: &TrialRecord| -> Result<()> {
         let mut line = serde_json::to_string(record).expect("record serialises");
         line.push('\n');
@@ -352,7 +367,7 @@ pub(crate) fn campaign_with(
         run.progress.trial_done();
         Ok(())
     };
-    let ran = run_trials_with(scenario, &prepared, &pending, run_one, &append);
+    let ran = stream_trials_with(scenario, &prepared, &pending, run_one, &append);
     run.progress.trials_finished();
     ran?;
     let mut records = read_records(&trials_path, false)?;
@@ -364,9 +379,9 @@ pub(crate) fn campaign_with(
     })
 }
 
-/// Creates the folder or checks that it holds this campaign (and that `resume` was asked for
-/// when it holds trials already); writes `campaign.json`.
-fn open_folder(out: &Path, described: &CampaignFile, resume: bool) -> Result<()> {
+/// Checks, writing nothing, that the folder is new (or empty: `Ok(true)`) or holds this campaign
+/// (`Ok(false)`; `resume` must be asked for when it holds trials already).
+fn check_folder(out: &Path, described: &CampaignFile, resume: bool) -> Result<bool> {
     let campaign_path = out.join(CAMPAIGN_FILE);
     if campaign_path.is_file() {
         let existing = read_campaign(out)?;
@@ -391,9 +406,15 @@ fn open_folder(out: &Path, described: &CampaignFile, resume: bool) -> Result<()>
                 "already holds trials of this campaign: pass --resume to complete it, or choose another --out",
             ));
         }
-        return Ok(());
+        return Ok(false);
     }
     ensure_new_or_empty(out, "holds no campaign.json")?;
+    Ok(true)
+}
+
+/// Creates the output folder of a new campaign with its `campaign.json`.
+fn create_folder(out: &Path, described: &CampaignFile) -> Result<()> {
+    let campaign_path = out.join(CAMPAIGN_FILE);
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, format!("cannot create: {e}")))?;
     let json = serde_json::to_vec_pretty(described).expect("campaign serialises");
     crate::files::write_atomically(&campaign_path, &json)
@@ -430,14 +451,24 @@ pub fn read_campaign(dir: &Path) -> Result<CampaignFile> {
 /// Reads `trials.jsonl`. With `repair`, a last line cut short by a kill is dropped (and the file
 /// truncated to its complete lines); any other unreadable line is an error naming it.
 pub fn read_records(path: &Path, repair: bool) -> Result<Vec<TrialRecord>> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(t) => t,
+    use std::io::BufRead;
+    let file = match std::fs::File::open(path) {
+        Ok(f) => f,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
         Err(e) => return Err(Error::file(path, format!("cannot read: {e}"))),
     };
+    let mut reader = std::io::BufReader::new(file);
     let mut records = Vec::new();
     let mut complete_len = 0;
-    for (n, line) in text.split_inclusive('\n').enumerate() {
+    let mut line = String::new();
+    for n in 0.. {
+        line.clear();
+        let read = reader
+            .read_line(&mut line)
+            .map_err(|e| Error::file(path, format!("line {}: cannot read: {e}", n + 1)))?;
+        if read == 0 {
+            break;
+        }
         let last_and_cut = !line.ends_with('\n');
         match serde_json::from_str::<TrialRecord>(line.trim_end()) {
             Ok(r) if !last_and_cut => {
@@ -517,12 +548,13 @@ fn sort_and_check_complete(
 
 /// Writes records as JSON lines, atomically.
 pub fn write_records(path: &Path, records: &[TrialRecord]) -> Result<()> {
-    let mut bytes = Vec::new();
-    for r in records {
-        serde_json::to_writer(&mut bytes, r).expect("record serialises");
-        bytes.push(b'\n');
-    }
-    crate::files::write_atomically(path, &bytes)
+    crate::files::write_atomically_with(path, |w| {
+        for r in records {
+            serde_json::to_writer(&mut *w, r)?;
+            w.write_all(b"\n")?;
+        }
+        Ok(())
+    })
 }
 
 /// Joins the shards in `dirs` into one campaign folder `out`: same scenario, every shard of the
@@ -577,7 +609,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, Vec<TrialRecord>
         shard: Shard::WHOLE,
         ..head
     };
-    open_folder(out, &described, false)?;
+    if check_folder(out, &described, false)? {
+        create_folder(out, &described)?;
+    }
     write_records(&out.join(TRIALS_FILE), &records)?;
     Ok((described.scenario, records))
 }

@@ -9,7 +9,10 @@
 //! N m/rad on roll, pitch, yaw, in the TCP frame). The fields are listed in the README.
 
 use crate::error::{Error, Result};
-use crate::method::config::{Method, Start, TrialConfig};
+use crate::method::config::{
+    MAX_SUCCESS_EPS_M, MAX_T_OBS_S, MIN_T_OBS_S, Method, Start, TrialConfig,
+};
+use crate::method::manifold::MAX_POINTS;
 use crate::method::manifold::cache::ManifoldSpec;
 use crate::method::register::RegistrationConfig;
 use crate::twin::cell::CellParams;
@@ -18,6 +21,9 @@ use crate::twin::geometry;
 use crate::twin::sensing::SensorParams;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+
+/// The most trials a cell may ask for.
+pub const MAX_TRIALS_PER_CELL: usize = 1_000_000;
 
 /// A scenario as written in its file.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -205,8 +211,9 @@ impl Scenario {
         let bad = |field: &str, v: String, expected: &str| {
             Err(Error::Input(format!("{field} = {v}: expected {expected}")))
         };
-        if self.trials == 0 {
-            return bad("trials", "0".into(), "at least 1");
+        if !(1..=MAX_TRIALS_PER_CELL).contains(&self.trials) {
+            let expected = format!("1 to {MAX_TRIALS_PER_CELL}");
+            return bad("trials", self.trials.to_string(), &expected);
         }
         if self.geometries.is_empty() {
             return bad("geometries", "[]".into(), "at least one geometry");
@@ -228,27 +235,33 @@ impl Scenario {
             return bad("t_obs_s", "[]".into(), "at least one observation time");
         }
         for &t in self.t_obs_s.iter().chain([&self.direct_t_obs_s]) {
-            if !(t > 0.0 && t <= 120.0) {
-                return bad("t_obs_s", t.to_string(), "times in (0, 120] s");
+            if !(MIN_T_OBS_S..=MAX_T_OBS_S).contains(&t) {
+                let expected = format!("times in [{MIN_T_OBS_S}, {MAX_T_OBS_S}] s");
+                return bad("t_obs_s", format!("{t:?}"), &expected);
             }
         }
         for (field, v, max) in [
             ("offset_mm", self.offset_mm, 20.0),
             ("offset_deg", self.offset_deg, 20.0),
-            ("success_mm", self.success_mm, 30.0),
         ] {
             if !(v >= 0.0 && v <= max) {
-                return bad(field, v.to_string(), &format!("a value in [0, {max}]"));
+                return bad(field, format!("{v:?}"), &format!("a value in [0, {max}]"));
             }
         }
-        let m = &self.manifold;
-        if m.points < 1000 || m.episodes == 0 || !(m.episode_s > 0.0 && m.episode_s <= 600.0) {
-            return bad(
-                "manifold",
-                format!("{m:?}"),
-                "points >= 1000, episodes >= 1, episode_s in (0, 600]",
-            );
+        let max_success_mm = MAX_SUCCESS_EPS_M * 1e3;
+        if !(self.success_mm > 0.0 && self.success_mm <= max_success_mm) {
+            let expected = format!("a depth in (0, {max_success_mm}] mm");
+            return bad("success_mm", format!("{:?}", self.success_mm), &expected);
         }
+        self.ensure_no_repeats()?;
+        let m = &self.manifold;
+        if !(1000..=MAX_POINTS).contains(&m.points) {
+            let expected = format!("1000 to {MAX_POINTS}");
+            return bad("manifold.points", m.points.to_string(), &expected);
+        }
+        m.sampler()
+            .ensure_valid()
+            .map_err(|e| Error::Input(format!("manifold: {e}")))?;
         let d = TrialConfig::default();
         for (phase, o, base) in [
             ("observe", &self.gains.observe, &d.observe_gains),
@@ -259,49 +272,36 @@ impl Scenario {
                 .ensure_valid()
                 .map_err(|e| Error::Input(format!("gains.{phase}: {e}")))?;
         }
-        let params = self.cell_params();
-        params
-            .sensors
-            .ensure_valid()
-            .map_err(|e| Error::Input(format!("sensors: {e}")))?;
-        let p = &params.physics;
-        if !(p.dt_s > 0.0 && p.dt_s <= 2e-3) {
-            return bad("physics.dt_s", p.dt_s.to_string(), "a step in (0, 0.002] s");
-        }
-        if !(1..=50).contains(&p.solver_iterations) {
-            return bad(
-                "physics.solver_iterations",
-                p.solver_iterations.to_string(),
-                "1 to 50",
-            );
-        }
-        if !(1..=50).contains(&p.pgs_iterations) {
-            return bad(
-                "physics.pgs_iterations",
-                p.pgs_iterations.to_string(),
-                "1 to 50",
-            );
-        }
-        if !(p.contact_frequency_hz > 0.0 && p.contact_frequency_hz.is_finite()) {
-            return bad(
-                "physics.contact_frequency_hz",
-                p.contact_frequency_hz.to_string(),
-                "a positive frequency",
-            );
-        }
-        if !(p.friction >= 0.0 && p.friction <= 2.0) {
-            return bad(
-                "physics.friction",
-                p.friction.to_string(),
-                "a value in [0, 2]",
-            );
-        }
+        self.cell_params().ensure_valid()?;
         for cell in self.cells() {
             self.trial_config(&cell)
                 .ensure_valid()
                 .map_err(|e| Error::Input(format!("{}: {e}", cell.label())))?;
         }
         Ok(())
+    }
+
+    /// Refuses a geometry, clearance, method or observation time listed twice: it would run the
+    /// same cell twice under one label.
+    fn ensure_no_repeats(&self) -> Result<()> {
+        fn first_repeat<T: PartialEq>(items: &[T]) -> Option<&T> {
+            items
+                .iter()
+                .enumerate()
+                .find(|(i, v)| items[..*i].contains(v))
+                .map(|(_, v)| v)
+        }
+        let repeat = first_repeat(&self.geometries)
+            .map(|g| ("geometries", format!("\"{g}\"")))
+            .or_else(|| first_repeat(&self.clearances_mm).map(|c| ("clearances_mm", c.to_string())))
+            .or_else(|| first_repeat(&self.t_obs_s).map(|t| ("t_obs_s", t.to_string())))
+            .or_else(|| first_repeat(&self.methods).map(|m| ("methods", format!("{m:?}"))));
+        match repeat {
+            Some((field, v)) => Err(Error::Input(format!(
+                "{field}: {v} is listed twice; each value names a cell once"
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// The cells in their fixed order: geometry, clearance, then the manifold method at each

@@ -204,7 +204,7 @@ fn evaluate(
     s.trials = trials_per_cell;
     s.ensure_valid()?;
     let specs = all_trials(&s);
-    let records: Vec<TrialRecord> = run_trials(&s, prepared, &specs, &|_| Ok(()))?;
+    let records: Vec<TrialRecord> = run_trials(&s, prepared, &specs);
     let successes = records.iter().filter(|r| r.result.success).count();
     let peaks: Vec<f64> = records
         .iter()

@@ -80,9 +80,16 @@ pub struct TuneArgs {
     pub cache_dir: Option<PathBuf>,
 }
 
+/// The most worker threads a run starts (a few hundred cores is the largest node in use).
+const MAX_THREADS: usize = 512;
+
 fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
-    if threads == Some(0) {
-        return Err(Error::Input("--threads 0: expected at least 1".into()));
+    if let Some(n) = threads
+        && !(1..=MAX_THREADS).contains(&n)
+    {
+        return Err(Error::Input(format!(
+            "--threads {n}: expected 1 to {MAX_THREADS}"
+        )));
     }
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads.unwrap_or(0))

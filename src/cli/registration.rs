@@ -7,7 +7,7 @@ use pegtwin::error::{Error, Result};
 use pegtwin::method::manifold::cache::ManifoldSpec;
 use pegtwin::method::manifold::file::{self, read_csv};
 use pegtwin::method::manifold::synthetic::SyntheticPair;
-use pegtwin::method::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
+use pegtwin::method::manifold::{DEFAULT_NORMAL_K, MAX_POINTS, Manifold, ManifoldMeta, UNITS};
 use pegtwin::method::register::{
     DEFAULT_RESTARTS, DEFAULT_SIGMA_DEG, Registration, RegistrationConfig, register,
 };
@@ -328,9 +328,9 @@ fn build(args: BuildArgs) -> Result<()> {
 fn synth(args: SynthArgs) -> Result<()> {
     let c = args.clearance_mm * 1e-3;
     pegtwin::twin::geometry::check_clearance(c)?;
-    if args.points < args.metric.k.max(7) {
+    if args.points < args.metric.k.max(7) || args.points > MAX_POINTS {
         return Err(Error::Input(format!(
-            "--points {}: expected at least --k = {} points",
+            "--points {}: expected --k = {} to {MAX_POINTS} points",
             args.points, args.metric.k
         )));
     }

@@ -83,6 +83,9 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
         ..Default::default()
     };
     config.ensure_valid()?;
+    if let Some(path) = &args.trace {
+        pegtwin::files::ensure_writable(path)?;
+    }
     let robot = pegtwin::twin::robot::urdf::iiwa14()?;
     let params = CellParams::default();
     let manifold = match args.method {
@@ -121,6 +124,19 @@ fn reference_manifold(
     params: &CellParams,
 ) -> Result<Manifold> {
     if let Some(path) = &args.manifold {
+        if !file::is_binary(path) && path.extension().is_some_and(|e| e == "csv") {
+            return Err(pegtwin::error::Error::file(
+                path,
+                format!(
+                    "a trial needs a manifold file that records its geometry and clearance; make \
+                     one from this CSV with `pegtwin manifold import {} --geometry {} \
+                     --clearance-mm {} --out FILE`",
+                    path.display(),
+                    pair.name,
+                    pair.clearance_m * 1e3
+                ),
+            ));
+        }
         let m = file::load(path)?;
         m.check_made_for(pair, path)?;
         return Ok(m);

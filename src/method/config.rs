@@ -28,8 +28,12 @@ pub enum Start {
     Above,
 }
 
-/// Longest observation a trial accepts, s.
+/// Shortest and longest observation a trial accepts, s (the paper: 6-10 s; 0.1 s is a hundred
+/// control cycles).
+pub const MIN_T_OBS_S: f64 = 0.1;
 pub const MAX_T_OBS_S: f64 = 600.0;
+/// Largest success threshold on the final depth, m (the paper: 2 mm).
+pub const MAX_SUCCESS_EPS_M: f64 = 0.03;
 /// Largest half-range of the hole's offset a trial accepts: 50 mm and 45 deg (beyond, the peg
 /// does not start in the hole's reach).
 pub const MAX_OFFSET: (f64, f64) = (0.05, std::f64::consts::FRAC_PI_4);
@@ -123,10 +127,17 @@ impl Default for TrialConfig {
 impl TrialConfig {
     /// Rejects values a trial cannot run with, naming the field.
     pub fn ensure_valid(&self) -> Result<()> {
-        if !(self.t_obs_s > 0.0 && self.t_obs_s <= MAX_T_OBS_S) {
+        if !(self.t_obs_s >= MIN_T_OBS_S && self.t_obs_s <= MAX_T_OBS_S) {
             return Err(Error::Input(format!(
-                "t_obs {} s: expected more than 0 and at most {MAX_T_OBS_S} s",
+                "t_obs {} s: expected {MIN_T_OBS_S} to {MAX_T_OBS_S} s",
                 self.t_obs_s
+            )));
+        }
+        if !(self.success_eps_m > 0.0 && self.success_eps_m <= MAX_SUCCESS_EPS_M) {
+            return Err(Error::Input(format!(
+                "success threshold {} mm: expected more than 0 and at most {} mm",
+                self.success_eps_m * 1e3,
+                MAX_SUCCESS_EPS_M * 1e3
             )));
         }
         let (max_m, max_rad) = MAX_OFFSET;

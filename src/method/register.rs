@@ -157,11 +157,11 @@ impl RegistrationConfig {
                 "registration {field}: expected {expected}"
             )))
         };
-        if self.iterations == 0 {
-            return bad("iterations", "at least 1");
+        if !(1..=MAX_ITERATIONS).contains(&self.iterations) {
+            return bad("iterations", &format!("1 to {MAX_ITERATIONS}"));
         }
-        if self.restarts == 0 {
-            return bad("restarts", "at least 1");
+        if !(1..=MAX_RESTARTS).contains(&self.restarts) {
+            return bad("restarts", &format!("1 to {MAX_RESTARTS}"));
         }
         if !(self.tolerance_mm >= 0.0 && self.tolerance_mm.is_finite()) {
             return bad("tolerance", "a finite number >= 0");
@@ -172,8 +172,11 @@ impl RegistrationConfig {
         if !(self.sigma_rad >= 0.0 && self.sigma_rad <= std::f64::consts::PI) {
             return bad("sigma (orientation)", "0 to 180 deg");
         }
-        if self.normal_k < 7 {
-            return bad("k", "at least 7 (a normal in 6-D needs 7 points)");
+        if !(7..=MAX_NORMAL_K).contains(&self.normal_k) {
+            return bad(
+                "k",
+                &format!("7 to {MAX_NORMAL_K} (a normal in 6-D needs 7 points)"),
+            );
         }
         if !(self.huber_k > 0.0 && self.mad_threshold > 0.0) {
             return bad("huber_k / mad_threshold", "positive numbers");
@@ -184,6 +187,11 @@ impl RegistrationConfig {
 
 /// Largest spread of the restarts' initial positions, m.
 const MAX_SIGMA_M: f64 = 1.0;
+/// Bounds on the work one registration may be asked for: iterations per restart, restarts,
+/// neighbours per normal.
+pub const MAX_ITERATIONS: usize = 10_000;
+pub const MAX_RESTARTS: usize = 1_000;
+pub const MAX_NORMAL_K: usize = 1_000;
 
 /// The result of one restart.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -231,13 +239,15 @@ pub fn register(
     cfg: &RegistrationConfig,
 ) -> Result<Registration> {
     cfg.ensure_valid()?;
-    check_observations(observations, cfg.normal_k)?;
+    check_observations(observations, cfg.normal_k, &manifold.meta.metric)?;
     init.ensure_plausible("initial estimate")?;
+    check_near_manifold(manifold, observations, init)?;
     let t0 = Instant::now();
     let obs: Vec<Iso> = observations.iter().map(Pose6::to_iso).collect();
     let init = init.to_iso();
     let mut restarts: Vec<RestartResult> = (0..cfg.restarts)
         .into_par_iter()
+        .with_min_len(min_chunk())
         .map(|r| run_from(manifold, &obs, restart_start(&init, r, cfg), cfg))
         .collect();
     let t1 = Instant::now();
@@ -256,7 +266,10 @@ pub fn register(
     })
 }
 
-fn check_observations(observations: &[Pose6], k: usize) -> Result<()> {
+/// Refuses observations that cannot pin a 6-D pose: fewer than the `k` an observation normal
+/// needs, implausible values, fewer than `k` distinct poses (repeated rows), or a cloud that
+/// spreads along one line only (in the metric's scaled coordinates).
+fn check_observations(observations: &[Pose6], k: usize, metric: &PoseMetric) -> Result<()> {
     if observations.len() < k {
         return Err(Error::Input(format!(
             "{} observations, fewer than the k = {k} neighbours an observation normal needs",
@@ -266,7 +279,91 @@ fn check_observations(observations: &[Pose6], k: usize) -> Result<()> {
     for (i, p) in observations.iter().enumerate() {
         p.ensure_plausible(&format!("observation {i}"))?;
     }
+    let scaled: Vec<[f64; 6]> = observations.iter().map(|p| metric.scaled(p)).collect();
+    let distinct: std::collections::BTreeSet<[u64; 6]> = scaled
+        .iter()
+        .map(|s| s.map(|v| (v + 0.0).to_bits()))
+        .collect();
+    if distinct.len() < k {
+        return Err(Error::Input(format!(
+            "only {} distinct observations among {} (repeated rows?): the observation normals \
+             need k = {k}",
+            distinct.len(),
+            observations.len()
+        )));
+    }
+    let spread = principal_spreads(&scaled);
+    if spread[1] <= 1e-6 * spread[0] {
+        return Err(Error::Input(format!(
+            "the {} observations lie on one line in pose space ({:.3} mm-equivalents along it, \
+             {:.3e} across): they cannot fix a 6-D pose",
+            observations.len(),
+            spread[0],
+            spread[1]
+        )));
+    }
     Ok(())
+}
+
+/// Standard deviations of a scaled point cloud along its principal axes, largest first.
+fn principal_spreads(points: &[[f64; 6]]) -> [f64; 6] {
+    let n = points.len() as f64;
+    let mean = points
+        .iter()
+        .fold(Vector6::zeros(), |m, p| m + Vector6::from(*p))
+        / n;
+    let cov = points.iter().fold(Matrix6::zeros(), |c, p| {
+        let d = Vector6::from(*p) - mean;
+        c + d * d.transpose()
+    }) / n;
+    let mut sd: Vec<f64> = cov
+        .symmetric_eigenvalues()
+        .iter()
+        .map(|e| e.max(0.0).sqrt())
+        .collect();
+    sd.sort_by(|a, b| b.total_cmp(a));
+    std::array::from_fn(|i| sd[i])
+}
+
+/// The most the observations' centre may lie outside the manifold's extent, seen from the
+/// initial estimate, m: more than the largest hole offset a trial draws (50 mm) and far less than
+/// a unit error of a thousand.
+pub const MAX_OBSERVATION_GAP_M: f64 = 0.1;
+
+/// Refuses observations whose centre, seen from the initial estimate of the hole, lies far outside
+/// the manifold's extent: observations in millimetres, or an estimate far from the hole.
+fn check_near_manifold(manifold: &Manifold, observations: &[Pose6], init: &Pose6) -> Result<()> {
+    let hole_t_base = init.to_iso().inverse();
+    let centre = observations.iter().fold(Vector3::zeros(), |c, p| {
+        c + (hole_t_base * p.to_iso()).translation.vector
+    }) / observations.len() as f64;
+    let ranges = manifold.ranges();
+    let gap = Vector3::from_fn(|i, _| {
+        let [lo, hi] = ranges[i];
+        (lo - centre[i]).max(centre[i] - hi).max(0.0)
+    })
+    .norm();
+    if gap > MAX_OBSERVATION_GAP_M {
+        return Err(Error::Input(format!(
+            "the observations' centre lies {gap:.3} m outside the manifold's extent, seen from the \
+             initial estimate: observations hold metres and radians (were these millimetres?), and \
+             the initial estimate must be near the hole"
+        )));
+    }
+    Ok(())
+}
+
+/// The smallest share a parallel loop of the registration is split into: one item, or the whole
+/// loop when the caller is itself a parallel task (a campaign's trial). There, a split would make
+/// the worker wait on a join, and a waiting worker steals another trial: several trials then live
+/// on one thread at once and memory creeps up over a long campaign, while the trials already fill
+/// the cores. The results are the same either way.
+fn min_chunk() -> usize {
+    if rayon::current_thread_index().is_some() {
+        usize::MAX
+    } else {
+        1
+    }
 }
 
 /// The initial pose of restart `r`: `init ⊗ exp(xi)`, `xi` from the restart's own random stream.
@@ -370,6 +467,7 @@ fn correspondences(
         .reference
         .par_iter_mut()
         .zip(state.neighbours.par_iter())
+        .with_min_len(min_chunk())
         .enumerate()
         .map(|(i, (ref_cache, nb_cache))| {
             let (o, s) = (&obs_h[i], &scaled[i]);

@@ -75,6 +75,29 @@ impl Default for CellParams {
     }
 }
 
+impl CellParams {
+    /// Everything a cell checks when it is built, checked up front (so a campaign refuses a
+    /// setting before it writes anything): physics ranges, a control period that is a whole
+    /// number of physics steps, the sensors, the peg mass.
+    pub fn ensure_valid(&self) -> Result<()> {
+        self.physics.ensure_valid()?;
+        steps_per_control_cycle(self)?;
+        self.sensors
+            .ensure_valid()
+            .map_err(|e| Error::Input(format!("sensors: {e}")))?;
+        if !(self.peg_mass_kg > 0.0 && self.peg_mass_kg <= MAX_PEG_MASS_KG) {
+            return Err(Error::Input(format!(
+                "peg mass {} kg: expected more than 0 and at most {MAX_PEG_MASS_KG} kg (the iiwa 14's payload)",
+                self.peg_mass_kg
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The heaviest peg with its holder, kg: the iiwa 14's rated payload.
+pub const MAX_PEG_MASS_KG: f64 = 14.0;
+
 /// Length of a peg from its tip (z = 0) to its top face, m.
 pub fn peg_length(pair: &PartPair) -> f64 {
     pair.peg.bounds().1.z
@@ -217,6 +240,7 @@ impl Cell {
         gains: ImpedanceGains,
         seed: u64,
     ) -> Result<Cell> {
+        params.ensure_valid()?;
         let steps_per_cycle = steps_per_control_cycle(params)?;
         let dt = params.physics.dt_s;
         let friction = params.physics.friction;
@@ -487,7 +511,7 @@ fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
     let steps = (period / dt).round() as usize;
     if steps == 0 || ((steps as f64) * dt - period).abs() > 1e-9 {
         return Err(Error::Input(format!(
-            "control period {period} s is not a whole number of physics steps of {dt} s"
+            "physics.dt_s = {dt}: the control period {period} s must be a whole number of physics steps"
         )));
     }
     Ok(steps)
@@ -496,12 +520,6 @@ fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
 /// The robot model carrying the peg as its tool: the peg's mass properties (its convex pieces at
 /// the peg mass of `params`) on the flange at `flange_t_tcp`.
 fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Result<RobotModel> {
-    if !crate::twin::control::is_positive(params.peg_mass_kg) {
-        return Err(Error::Input(format!(
-            "peg mass {} kg: expected a positive value",
-            params.peg_mass_kg
-        )));
-    }
     let tcp_on_flange = flange_t_tcp(pair);
     let peg_props = compound_collider(&pair.peg, params.physics.friction)
         .mass(params.peg_mass_kg as f32)

@@ -32,6 +32,14 @@ pub const TRANSLATIONAL_STIFFNESS_RANGE: (f64, f64) = (0.0, 5000.0);
 pub const ROTATIONAL_STIFFNESS_RANGE: (f64, f64) = (0.0, 300.0);
 pub const DAMPING_RATIO_RANGE: (f64, f64) = (0.1, 1.0);
 pub const NULL_SPACE_DAMPING_RANGE: (f64, f64) = (0.3, 1.0);
+/// The largest force (N) and torque (N m) pegtwin accepts at the TCP, from a user's additional
+/// control force or a diagnostic push: twice the iiwa 14's rated payload and more than its wrist
+/// transmits. Sunrise takes any value; a larger one is a unit error.
+pub const MAX_TCP_WRENCH: (f64, f64) = (500.0, 100.0);
+/// Plausible upper bounds: null-space stiffness, N m/rad (Sunrise: >= 0), and max control force,
+/// N or N m (libiiwa sends 1e6 for "unlimited").
+pub const MAX_NULL_STIFFNESS: f64 = 1e4;
+pub const MAX_CONTROL_FORCE_LIMIT: f64 = 1e6;
 
 const AXES: [&str; 6] = ["x", "y", "z", "a (about z)", "b (about y)", "c (about x)"];
 
@@ -83,7 +91,8 @@ impl ImpedanceGains {
         }
     }
 
-    /// Rejects values outside the Sunrise ranges, naming the parameter, axis and range.
+    /// Rejects values outside the Sunrise ranges (and pegtwin's plausible bounds where Sunrise
+    /// sets none), naming the parameter, axis and range.
     pub fn ensure_valid(&self) -> Result<()> {
         for (i, &k) in self.stiffness.iter().enumerate() {
             let (lo, hi) = if i < 3 {
@@ -105,7 +114,7 @@ impl ImpedanceGains {
         check_range(
             "null-space stiffness",
             self.null_stiffness,
-            (0.0, f64::INFINITY),
+            (0.0, MAX_NULL_STIFFNESS),
             "N m/rad",
         )?;
         check_range(
@@ -114,24 +123,27 @@ impl ImpedanceGains {
             NULL_SPACE_DAMPING_RANGE,
             "",
         )?;
-        if let Some(max) = self.max_control_force
-            && let Some((i, v)) = max.iter().enumerate().find(|(_, v)| !is_positive(**v))
-        {
-            return Err(Error::Input(format!(
-                "max control force {} is {v}: expected a positive value",
-                AXES[i]
-            )));
-        }
-        if let Some((i, v)) = self
-            .additional_force
-            .iter()
-            .enumerate()
-            .find(|(_, v)| !v.is_finite())
-        {
-            return Err(Error::Input(format!(
-                "additional force {} is {v}: expected a finite value",
-                AXES[i]
-            )));
+        for i in 0..6 {
+            let unit = if i < 3 { "N" } else { "N m" };
+            if let Some(max) = self.max_control_force {
+                check_range(
+                    &format!("max control force {}", AXES[i]),
+                    max[i],
+                    (f64::MIN_POSITIVE, MAX_CONTROL_FORCE_LIMIT),
+                    unit,
+                )?;
+            }
+            let limit = if i < 3 {
+                MAX_TCP_WRENCH.0
+            } else {
+                MAX_TCP_WRENCH.1
+            };
+            check_range(
+                &format!("additional force {}", AXES[i]),
+                self.additional_force[i],
+                (-limit, limit),
+                unit,
+            )?;
         }
         Ok(())
     }
@@ -145,7 +157,8 @@ pub fn is_positive(v: f64) -> bool {
 fn check_range(what: &str, v: f64, (lo, hi): (f64, f64), unit: &str) -> Result<()> {
     if !(v >= lo && v <= hi) {
         return Err(Error::Input(format!(
-            "{what} {v} {unit} is outside the KUKA Sunrise range [{lo}, {hi}] {unit}"
+            "{what} {v:?} {unit} is outside the accepted range [{lo}, {hi}] {unit} (KUKA \
+             Sunrise's, or pegtwin's plausible one where Sunrise sets none)"
         )));
     }
     Ok(())

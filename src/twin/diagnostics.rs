@@ -24,9 +24,8 @@ pub struct PushTest {
     pub settle_s: f64,
 }
 
-/// Pushes a diagnostic accepts: up to 500 N and 100 N m (twice the arm's rated payload, and
-/// more than its wrist drives give).
-pub const MAX_PUSH: (f64, f64) = (500.0, 100.0);
+/// Pushes a diagnostic accepts: the TCP wrench bound of the controller's inputs.
+pub const MAX_PUSH: (f64, f64) = crate::twin::control::MAX_TCP_WRENCH;
 
 impl PushTest {
     /// Refuses pushes that are not positive or beyond [`MAX_PUSH`], naming the value.

@@ -83,28 +83,27 @@ impl SensorParams {
 
     /// Rejects non-physical values, naming the field.
     pub fn ensure_valid(&self) -> Result<()> {
-        let non_negative = [
-            ("encoder_resolution_rad", self.encoder_resolution_rad),
-            ("encoder_noise_rad", self.encoder_noise_rad),
-            ("torque_noise_nm", self.torque_noise_nm),
-            ("torque_bias_walk_nm", self.torque_bias_walk_nm),
-            ("pinv_damping", self.pinv_damping),
+        // (name, value, least, most): a value outside is a unit error, or noise that buries
+        // the contact force the method needs.
+        let ranges = [
+            (
+                "encoder_resolution_rad",
+                self.encoder_resolution_rad,
+                0.0,
+                0.01,
+            ),
+            ("encoder_noise_rad", self.encoder_noise_rad, 0.0, 0.01),
+            ("torque_noise_nm", self.torque_noise_nm, 0.0, 10.0),
+            ("torque_bias_walk_nm", self.torque_bias_walk_nm, 0.0, 10.0),
+            ("pinv_damping", self.pinv_damping, 0.0, 1.0),
+            ("observer_gain_per_s", self.observer_gain_per_s, 1e-3, 1e4),
+            ("wrench_filter_hz", self.wrench_filter_hz, 1e-3, 500.0),
+            ("contact_on_n", self.contact_on_n, 1e-3, 500.0),
         ];
-        for (name, v) in non_negative {
-            if !(v >= 0.0 && v.is_finite()) {
+        for (name, v, least, most) in ranges {
+            if !(v >= least && v <= most) {
                 return Err(Error::Input(format!(
-                    "sensor {name} is {v}: expected a finite value >= 0"
-                )));
-            }
-        }
-        for (name, v) in [
-            ("observer_gain_per_s", self.observer_gain_per_s),
-            ("wrench_filter_hz", self.wrench_filter_hz),
-            ("contact_on_n", self.contact_on_n),
-        ] {
-            if !(v > 0.0 && v.is_finite()) {
-                return Err(Error::Input(format!(
-                    "sensor {name} is {v}: expected a positive value"
+                    "sensor {name} is {v:?}: expected a value in [{least}, {most}]"
                 )));
             }
         }

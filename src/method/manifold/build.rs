@@ -12,7 +12,7 @@
 //! at least N occupied cells; if more, a seeded uniform subset of cells is kept. Each cell keeps
 //! the pose nearest its cell's mean (a real sample, not an average of poses).
 
-use super::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
+use super::{DEFAULT_NORMAL_K, MAX_POINTS, Manifold, ManifoldMeta, UNITS};
 use crate::error::{Error, Result};
 use crate::method::primitives::{
     AmplitudeSchedule, Descent, Drive, Perturbation, PerturbationState, SamplingMotion,
@@ -88,18 +88,25 @@ impl Default for SamplerConfig {
 impl SamplerConfig {
     /// Rejects values that cannot make a manifold, naming the field.
     pub fn ensure_valid(&self) -> Result<()> {
-        if self.episodes == 0 {
-            return Err(Error::Input("episodes is 0: expected at least 1".into()));
-        }
-        if !crate::twin::control::is_positive(self.episode_s) {
+        if !(1..=MAX_EPISODES).contains(&self.episodes) {
             return Err(Error::Input(format!(
-                "episode_s is {}: expected a positive time",
+                "episodes is {}: expected 1 to {MAX_EPISODES}",
+                self.episodes
+            )));
+        }
+        if !(self.episode_s > 0.0 && self.episode_s <= MAX_EPISODE_S) {
+            return Err(Error::Input(format!(
+                "episode_s is {:?}: expected more than 0 and at most {MAX_EPISODE_S} s",
                 self.episode_s
             )));
         }
         self.gains.ensure_valid()
     }
 }
+
+/// Bounds on a reference manifold's sampling: episodes, simulated seconds per episode.
+pub const MAX_EPISODES: usize = 10_000;
+pub const MAX_EPISODE_S: f64 = 600.0;
 
 /// Tip height above the mouth at which an episode counts the peg as out of the hole, m.
 const LEFT_HOLE_M: f64 = 1e-3;
@@ -284,9 +291,9 @@ pub fn build(
     on_episode: &(dyn Fn() + Sync),
 ) -> Result<BuildReport> {
     config.ensure_valid()?;
-    if points < DEFAULT_NORMAL_K + 1 {
+    if !(DEFAULT_NORMAL_K + 1..=MAX_POINTS).contains(&points) {
         return Err(Error::Input(format!(
-            "--points {points}: expected at least {} (the normal neighbourhood)",
+            "--points {points}: expected {} (the normal neighbourhood) to {MAX_POINTS}",
             DEFAULT_NORMAL_K + 1
         )));
     }

@@ -115,7 +115,8 @@ pub fn load(path: &Path) -> Result<Manifold> {
     if bytes.len() < 16 || &bytes[..16] != MAGIC {
         return Err(Error::file(
             path,
-            "not a pegtwin manifold file (magic bytes missing); CSV files need the .csv extension",
+            "not a pegtwin manifold file (magic bytes missing): made by `manifold build` or \
+             `manifold import`, or a CSV of poses named *.csv where a command takes CSV",
         ));
     }
     if bytes.len() < 28 {

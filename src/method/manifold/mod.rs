@@ -47,6 +47,9 @@ pub struct ManifoldMeta {
     pub seed: Option<u64>,
 }
 
+/// The most poses a manifold may hold (built, synthesised or imported): 100 times the paper's.
+pub const MAX_POINTS: usize = 5_000_000;
+
 /// Units written into every manifold.
 pub const UNITS: &str = "m, rad";
 
@@ -481,24 +484,38 @@ fn check_points(points: &[Pose6], k: usize) -> Result<()> {
             points.len()
         )));
     }
-    if points.len() > u32::MAX as usize {
+    if points.len() > MAX_POINTS {
         return Err(Error::Input(format!(
-            "manifold has {} points; at most {} are supported",
-            points.len(),
-            u32::MAX
+            "manifold has {} points; at most {MAX_POINTS} are supported",
+            points.len()
         )));
     }
     for (i, p) in points.iter().enumerate() {
         p.ensure_plausible(&format!("manifold point {i}"))?;
     }
+    let distinct: std::collections::BTreeSet<[u64; 6]> = points
+        .iter()
+        .map(|p| p.0.map(|v| (v + 0.0).to_bits()))
+        .collect();
+    if distinct.len() < k {
+        return Err(Error::Input(format!(
+            "manifold has {} points but only {} distinct ones (repeated rows?), fewer than the \
+             {k} neighbours each normal needs",
+            points.len(),
+            distinct.len()
+        )));
+    }
     Ok(())
 }
+
+/// How far from 1 the length of a normal read from a file may be (CSV rounding).
+pub const NORMAL_LENGTH_TOLERANCE: f64 = 1e-3;
 
 /// Normals read from a file must be unit vectors (NaN or zero normals give confident nonsense).
 fn check_normals(normals: &[[f64; 6]]) -> Result<()> {
     for (i, n) in normals.iter().enumerate() {
         let norm = n.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if (norm - 1.0).abs() > 1e-3 || norm.is_nan() {
+        if norm.is_nan() || (norm - 1.0).abs() > NORMAL_LENGTH_TOLERANCE {
             return Err(Error::Input(format!(
                 "manifold normal {i} has length {norm}: expected a unit vector (recompute the normals: import the poses without them)"
             )));

@@ -119,6 +119,13 @@ impl MeshUnits {
             MeshUnits::M => 1.0,
         }
     }
+
+    fn name(self) -> &'static str {
+        match self {
+            MeshUnits::Mm => "millimetres",
+            MeshUnits::M => "metres",
+        }
+    }
 }
 
 /// A triangle mesh read from a file, metres.
@@ -186,11 +193,26 @@ pub fn read_mesh(path: &Path, units: MeshUnits) -> Result<TriangleSoup> {
         return Err(Error::file(path, "a triangle refers to a missing vertex"));
     }
     let s = units.scale();
+    let vertices: Vec<P3> = raw
+        .iter()
+        .map(|v| P3::new(v[0] as f64 * s, v[1] as f64 * s, v[2] as f64 * s))
+        .collect();
+    let limit = crate::pose::MAX_COORDINATE_M;
+    if let Some(far) = vertices.iter().find(|v| v.coords.amax() > limit) {
+        return Err(Error::file(
+            path,
+            format!(
+                "vertex ({:.4}, {:.4}, {:.4}) m lies beyond +-{limit} m: are the units right \
+                 (read as {})?",
+                far.x,
+                far.y,
+                far.z,
+                units.name()
+            ),
+        ));
+    }
     Ok(TriangleSoup {
-        vertices: raw
-            .iter()
-            .map(|v| P3::new(v[0] as f64 * s, v[1] as f64 * s, v[2] as f64 * s))
-            .collect(),
+        vertices,
         triangles,
     })
 }
@@ -263,6 +285,18 @@ pub fn load_pair(
     let half_gap = clearance_m / 2.0;
     let peg = load_solid(peg_path, units, half_gap)?;
     let hole = load_solid(hole_path, units, half_gap)?;
+    let hole_bottom_m = -hole.solid.bounds().0.z;
+    if !(cavity_depth_m > 0.0 && cavity_depth_m <= hole_bottom_m) {
+        return Err(Error::file(
+            hole_path,
+            format!(
+                "cavity depth {} mm: expected more than 0 and at most the {:.3} mm the hole mesh \
+                 reaches below its mouth (z = 0)",
+                cavity_depth_m * 1e3,
+                hole_bottom_m * 1e3
+            ),
+        ));
+    }
     let warnings = peg.warnings.into_iter().chain(hole.warnings).collect();
     let pair = PartPair {
         name: format!("{} in {}", peg_path.display(), hole_path.display()),

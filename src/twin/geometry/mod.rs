@@ -27,12 +27,13 @@ pub const FLOOR_THICKNESS_M: f64 = 10e-3;
 pub const BODY_HEIGHT_M: f64 = 10e-3;
 /// Side of the square peg body, metres.
 pub const BODY_SIZE_M: f64 = 36e-3;
-/// 45-degree chamfer on the peg tip, metres.
+/// 45-degree chamfer on the peg tip, metres (smaller where a profile's features are thinner than
+/// it allows: `fitting_chamfer`).
 pub const PEG_TIP_CHAMFER_M: f64 = 0.3e-3;
-/// 45-degree chamfer on the hole mouth, metres.
+/// 45-degree chamfer on the hole mouth, metres (smaller where needed, as the peg's).
 pub const HOLE_ENTRY_CHAMFER_M: f64 = 0.3e-3;
-/// Smallest and largest clearance the built-ins are made for, metres.
-pub const CLEARANCE_RANGE_M: (f64, f64) = (0.0, 5e-3);
+/// Smallest and largest clearance the built-ins are made for, metres (both included).
+pub const CLEARANCE_RANGE_M: (f64, f64) = (0.01e-3, 5e-3);
 
 /// A peg and its hole, ready for simulation.
 #[derive(Clone, Debug)]
@@ -54,9 +55,9 @@ pub struct PartPair {
 /// Checks a clearance value (metres) against the supported range.
 pub fn check_clearance(clearance_m: f64) -> Result<()> {
     let (lo, hi) = CLEARANCE_RANGE_M;
-    if !(clearance_m > lo && clearance_m <= hi) {
+    if !(clearance_m >= lo && clearance_m <= hi) {
         return Err(Error::Input(format!(
-            "clearance {} mm is out of range: expected more than {} mm and at most {} mm",
+            "clearance {} mm is out of range: expected {} to {} mm",
             clearance_m * 1e3,
             lo * 1e3,
             hi * 1e3
@@ -127,27 +128,24 @@ struct Skirt {
     /// Each chamfered ring offset by the chamfer, vertex for vertex (for the boundary mesh).
     chamfer_rings: Vec<Vec<P2>>,
     core: Vec<Region>,
+    /// The chamfer the strips carry, metres (see [`fitting_chamfer`]).
+    chamfer: f64,
 }
 
 fn skirt(
     material: &[Region],
     rings: &[Vec<P2>],
-    chamfer: f64,
+    nominal_chamfer: f64,
 ) -> std::result::Result<Skirt, String> {
+    let chamfer = fitting_chamfer(rings, nominal_chamfer)?;
     let mut strips = Vec::new();
     let mut chamfer_rings = Vec::new();
     for ring in rings {
-        let collapse = || {
-            format!(
-                "a {} mm chamfer collapses an edge of the profile; use a smaller chamfer",
-                chamfer * 1e3
-            )
-        };
-        let c = offset_left(ring, chamfer).ok_or_else(collapse)?;
+        let c = offset_left(ring, chamfer).expect("the chamfer fits every ring");
         let w = STRIP_WIDTH_FACTORS
             .iter()
             .find_map(|f| offset_left(ring, f * chamfer))
-            .ok_or_else(collapse)?;
+            .unwrap_or_else(|| c.clone());
         let n = ring.len();
         for i in 0..n {
             let j = (i + 1) % n;
@@ -163,8 +161,36 @@ fn skirt(
         core: difference(material, &quads),
         strips,
         chamfer_rings,
+        chamfer,
     })
 }
+
+/// The chamfer a profile carries: the nominal one, or where a feature of the profile is thinner
+/// than it allows (a 0.5 mm tooth flat at a large clearance, a short edge of a finely polygonised
+/// curve at a small one), the largest whole micrometre below 80 % of the distance at which the
+/// first edge collapses. Below [`MIN_CHAMFER_M`] the profile is refused.
+fn fitting_chamfer(rings: &[Vec<P2>], nominal: f64) -> std::result::Result<f64, String> {
+    let collapse = rings
+        .iter()
+        .map(|r| planar::collapse_distance(r))
+        .fold(f64::INFINITY, f64::min);
+    if collapse > nominal {
+        return Ok(nominal);
+    }
+    let reduced = (0.8 * collapse * 1e6).floor() * 1e-6;
+    if reduced < MIN_CHAMFER_M {
+        return Err(format!(
+            "a feature of the profile collapses under a {:.3} mm chamfer (the least pegtwin \
+             builds is {} mm): the profile is too thin at this clearance",
+            collapse * 1e3,
+            MIN_CHAMFER_M * 1e3
+        ));
+    }
+    Ok(reduced)
+}
+
+/// The smallest chamfer a built-in carries, metres.
+pub const MIN_CHAMFER_M: f64 = 0.02e-3;
 
 /// A strip piece: the ring edge at height `z_edge`, the chamfer line and the strip's inner line
 /// at `z_face` (the tip or the mouth), the bevel between them, and the edge and inner line again at
@@ -199,9 +225,9 @@ fn strip_piece(s: &[P2; 6], z_edge: f64, z_face: f64, z_far: f64) -> ConvexPiece
 
 /// The peg: pin(s) with a chamfered tip, and the body block on top.
 fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
-    let ch = PEG_TIP_CHAMFER_M;
     let rings: Vec<Vec<P2>> = profile.iter().flat_map(|r| r.rings().cloned()).collect();
-    let sk = skirt(profile, &rings, ch)?;
+    let sk = skirt(profile, &rings, PEG_TIP_CHAMFER_M)?;
+    let ch = sk.chamfer;
     let mut pieces = prisms(&sk.core, ZPlane::flat(0.0), ZPlane::flat(PIN_LENGTH_M));
     pieces.extend(
         sk.strips
@@ -257,7 +283,6 @@ fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
 
 /// The hole block: walls around the cavity with a chamfered mouth, and the floor slab.
 fn build_hole(cavity: &[Region]) -> std::result::Result<Solid, String> {
-    let ch = HOLE_ENTRY_CHAMFER_M;
     let half = BLOCK_SIZE_M / 2.0;
     let square = rect(-half, -half, half, half);
     let block = Region {
@@ -270,7 +295,8 @@ fn build_hole(cavity: &[Region]) -> std::result::Result<Solid, String> {
         return Err("the cavity splits the block".into());
     }
     let rings: Vec<Vec<P2>> = material[0].holes.clone();
-    let sk = skirt(&material, &rings, ch)?;
+    let sk = skirt(&material, &rings, HOLE_ENTRY_CHAMFER_M)?;
+    let ch = sk.chamfer;
     let floor = -CAVITY_DEPTH_M;
     let bottom = floor - FLOOR_THICKNESS_M;
     let mut pieces = prisms(&sk.core, ZPlane::flat(floor), ZPlane::flat(0.0));

@@ -372,7 +372,7 @@ fn merge_if_convex(
 }
 
 /// The signed turn (radians, positive to the left) at `v` walking u -> v -> w.
-fn turn(u: P2, v: P2, w: P2) -> f64 {
+pub fn turn(u: P2, v: P2, w: P2) -> f64 {
     let (a, b) = (v - u, w - v);
     cross(a, b).atan2(a.dot(&b))
 }
@@ -399,27 +399,50 @@ pub fn simplify_ring(ring: &[P2], tol: f64) -> Vec<P2> {
 /// Mitred offset of a ring by `distance` towards the left of its edges (into the material for
 /// rings oriented with the material on their left). Returns one vertex per input vertex, or
 /// `None` if an edge would collapse or reverse within that distance (a straight-skeleton edge
-/// event), in which case the caller must use a smaller distance.
+/// event, see [`collapse_distance`]), in which case the caller must use a smaller distance.
 pub fn offset_left(ring: &[P2], distance: f64) -> Option<Vec<P2>> {
+    (collapse_distance(ring) > distance).then(|| {
+        let mitres = mitres(ring);
+        ring.iter()
+            .zip(&mitres)
+            .map(|(p, m)| p + m * distance)
+            .collect()
+    })
+}
+
+/// The smallest left offset at which an edge of the ring collapses (its mitred end points meet),
+/// infinite if none does: a feature of the profile thinner than twice a chamfer cannot carry it.
+pub fn collapse_distance(ring: &[P2]) -> f64 {
+    let n = ring.len();
+    let mitres = mitres(ring);
+    (0..n)
+        .map(|i| {
+            let j = (i + 1) % n;
+            let edge = ring[j] - ring[i];
+            let closing = -(mitres[j] - mitres[i]).dot(&edge);
+            if closing > 0.0 {
+                edge.norm_squared() / closing
+            } else {
+                f64::INFINITY
+            }
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Per vertex, how far it moves per unit of left offset (the mitre of its two edges' normals).
+fn mitres(ring: &[P2]) -> Vec<Vector2<f64>> {
     let n = ring.len();
     let left = |a: P2, b: P2| {
         let d = (b - a).normalize();
         Vector2::new(-d.y, d.x)
     };
-    let out: Vec<P2> = (0..n)
+    (0..n)
         .map(|i| {
             let (prev, cur, next) = (ring[(i + n - 1) % n], ring[i], ring[(i + 1) % n]);
             let (na, nb) = (left(prev, cur), left(cur, next));
-            let mitre = (na + nb) / (1.0 + na.dot(&nb));
-            cur + mitre * distance
+            (na + nb) / (1.0 + na.dot(&nb))
         })
-        .collect();
-    let ok = (0..n).all(|i| {
-        let (a, b) = (ring[i], ring[(i + 1) % n]);
-        let (a2, b2) = (out[i], out[(i + 1) % n]);
-        (b2 - a2).dot(&(b - a)) > 0.0
-    });
-    ok.then_some(out)
+        .collect()
 }
 
 #[cfg(test)]

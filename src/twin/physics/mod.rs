@@ -57,7 +57,58 @@ impl Default for PhysicsParams {
     }
 }
 
+/// Accepted physics settings: step (s), substeps and PGS passes, contact natural frequency (Hz),
+/// friction coefficient. Outside them a run either does not resolve a 0.1 mm gap or does unbounded
+/// work per simulated second.
+pub const DT_RANGE_S: (f64, f64) = (1e-5, 1e-3);
+pub const ITERATIONS_RANGE: (usize, usize) = (1, 50);
+pub const CONTACT_FREQUENCY_RANGE_HZ: (f64, f64) = (1.0, 10_000.0);
+pub const FRICTION_RANGE: (f64, f64) = (0.0, 2.0);
+
 impl PhysicsParams {
+    /// Refuses settings outside the accepted ranges, naming the field (as in a scenario's
+    /// `[physics]` section) and the range.
+    pub fn ensure_valid(&self) -> crate::error::Result<()> {
+        let bad = |field: &str, v: String, range: String| {
+            Err(crate::error::Error::Input(format!(
+                "physics.{field} = {v}: expected {range}"
+            )))
+        };
+        let within = |v: f64, (lo, hi): (f64, f64)| v >= lo && v <= hi;
+        if !within(self.dt_s, DT_RANGE_S) {
+            let (lo, hi) = DT_RANGE_S;
+            return bad(
+                "dt_s",
+                format!("{:?}", self.dt_s),
+                format!("a step in [{lo}, {hi}] s"),
+            );
+        }
+        for (field, n) in [
+            ("solver_iterations", self.solver_iterations),
+            ("pgs_iterations", self.pgs_iterations),
+        ] {
+            let (lo, hi) = ITERATIONS_RANGE;
+            if !(lo..=hi).contains(&n) {
+                return bad(field, n.to_string(), format!("{lo} to {hi}"));
+            }
+        }
+        if !within(self.contact_frequency_hz, CONTACT_FREQUENCY_RANGE_HZ) {
+            let (lo, hi) = CONTACT_FREQUENCY_RANGE_HZ;
+            let range = format!("a frequency in [{lo}, {hi}] Hz");
+            return bad(
+                "contact_frequency_hz",
+                format!("{:?}", self.contact_frequency_hz),
+                range,
+            );
+        }
+        if !within(self.friction, FRICTION_RANGE) {
+            let (lo, hi) = FRICTION_RANGE;
+            let range = format!("a coefficient in [{lo}, {hi}]");
+            return bad("friction", format!("{:?}", self.friction), range);
+        }
+        Ok(())
+    }
+
     /// rapier's integration parameters for these settings.
     pub fn integration_parameters(&self) -> IntegrationParameters {
         let mut p = IntegrationParameters {

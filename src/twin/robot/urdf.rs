@@ -13,9 +13,10 @@ use super::{
     iso_xyz_rpy,
 };
 use crate::error::{Error, Result};
+use crate::pose::{MAX_ANGLE_RAD, MAX_COORDINATE_M};
 use crate::twin::geometry::mesh::{MeshUnits, read_mesh};
 use nalgebra::{Matrix3, Point3, Vector3};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// The iiwa 14 shipped with pegtwin.
@@ -51,30 +52,40 @@ pub fn iiwa14() -> Result<RobotModel> {
     Ok(load(Path::new(IIWA14_URDF), &[])?.model)
 }
 
-/// Numeric attributes of the URDF elements pegtwin reads, and how many numbers each holds.
-const NUMERIC_ATTRIBUTES: &[(&str, &str, usize)] = &[
-    ("origin", "xyz", 3),
-    ("origin", "rpy", 3),
-    ("axis", "xyz", 3),
-    ("mass", "value", 1),
-    ("inertia", "ixx", 1),
-    ("inertia", "ixy", 1),
-    ("inertia", "ixz", 1),
-    ("inertia", "iyy", 1),
-    ("inertia", "iyz", 1),
-    ("inertia", "izz", 1),
-    ("limit", "lower", 1),
-    ("limit", "upper", 1),
-    ("limit", "effort", 1),
-    ("limit", "velocity", 1),
-    ("dynamics", "damping", 1),
-    ("dynamics", "friction", 1),
-    ("box", "size", 3),
-    ("cylinder", "radius", 1),
-    ("cylinder", "length", 1),
-    ("sphere", "radius", 1),
-    ("mesh", "scale", 3),
+/// Numeric attributes of the URDF elements pegtwin reads: how many numbers each holds and the
+/// plausible range of each number (SI: m, rad, kg, kg m^2, N or N m, m/s or rad/s). A value
+/// outside it is a unit error or corrupt data, refused with the range in the message.
+const NUMERIC_ATTRIBUTES: &[(&str, &str, usize, f64, f64)] = &[
+    ("origin", "xyz", 3, -MAX_COORDINATE_M, MAX_COORDINATE_M),
+    ("origin", "rpy", 3, -MAX_ANGLE_RAD, MAX_ANGLE_RAD),
+    ("axis", "xyz", 3, -1e3, 1e3),
+    ("mass", "value", 1, 0.0, MAX_LINK_MASS_KG),
+    ("inertia", "ixx", 1, -MAX_INERTIA_KG_M2, MAX_INERTIA_KG_M2),
+    ("inertia", "ixy", 1, -MAX_INERTIA_KG_M2, MAX_INERTIA_KG_M2),
+    ("inertia", "ixz", 1, -MAX_INERTIA_KG_M2, MAX_INERTIA_KG_M2),
+    ("inertia", "iyy", 1, -MAX_INERTIA_KG_M2, MAX_INERTIA_KG_M2),
+    ("inertia", "iyz", 1, -MAX_INERTIA_KG_M2, MAX_INERTIA_KG_M2),
+    ("inertia", "izz", 1, -MAX_INERTIA_KG_M2, MAX_INERTIA_KG_M2),
+    ("limit", "lower", 1, -1e3, 1e3),
+    ("limit", "upper", 1, -1e3, 1e3),
+    ("limit", "effort", 1, 0.0, 1e6),
+    ("limit", "velocity", 1, 0.0, 1e3),
+    ("dynamics", "damping", 1, 0.0, 1e4),
+    ("dynamics", "friction", 1, 0.0, 1e4),
+    ("box", "size", 3, 0.0, MAX_COORDINATE_M),
+    ("cylinder", "radius", 1, 0.0, MAX_COORDINATE_M),
+    ("cylinder", "length", 1, 0.0, MAX_COORDINATE_M),
+    ("sphere", "radius", 1, 0.0, MAX_COORDINATE_M),
+    ("mesh", "scale", 3, -1e3, 1e3),
 ];
+
+/// The heaviest link pegtwin accepts, kg (a large industrial arm's links weigh hundreds).
+pub const MAX_LINK_MASS_KG: f64 = 1e4;
+/// The largest inertia component pegtwin accepts, kg m^2.
+pub const MAX_INERTIA_KG_M2: f64 = 1e4;
+/// The deepest element nesting pegtwin reads (a URDF nests 5 deep; a deeper file is refused
+/// before the XML deserialiser, which recurses, can overflow its stack on it).
+pub const MAX_XML_DEPTH: usize = 32;
 
 /// Checks the XML and the numeric attributes before urdf-rs reads the file, so that an error
 /// names the line, the element and the attribute (urdf-rs reports only "invalid float literal").
@@ -86,9 +97,10 @@ fn check_xml(text: &str) -> std::result::Result<(), String> {
             doc.root_element().tag_name().name()
         ));
     }
+    check_depth(&doc)?;
     for node in doc.descendants().filter(|n| n.is_element()) {
         let tag = node.tag_name().name();
-        for (_, attr, count) in NUMERIC_ATTRIBUTES.iter().filter(|(t, _, _)| *t == tag) {
+        for (_, attr, count, min, max) in NUMERIC_ATTRIBUTES.iter().filter(|a| a.0 == tag) {
             let Some(value) = node.attribute(*attr) else {
                 continue;
             };
@@ -96,13 +108,31 @@ fn check_xml(text: &str) -> std::result::Result<(), String> {
                 .split_whitespace()
                 .map(|v| v.parse::<f64>().ok())
                 .collect();
-            if numbers.len() != *count || numbers.iter().any(|n| n.is_none_or(|v| !v.is_finite())) {
+            let plausible = |n: &Option<f64>| n.is_some_and(|v| v >= *min && v <= *max);
+            if numbers.len() != *count || !numbers.iter().all(plausible) {
                 let line = doc.text_pos_at(node.range().start).row;
                 return Err(format!(
-                    "line {line}: <{tag} {attr}=\"{value}\">: expected {count} finite number{}",
+                    "line {line}: <{tag} {attr}=\"{value}\">: expected {count} number{} in [{min}, {max}]",
                     if *count == 1 { "" } else { "s" }
                 ));
             }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses element nesting deeper than [`MAX_XML_DEPTH`], without recursion: nodes come in
+/// document order, so a parent's depth is known before its children's.
+fn check_depth(doc: &roxmltree::Document) -> std::result::Result<(), String> {
+    let mut depth = vec![0usize; doc.descendants().count()];
+    for node in doc.descendants().filter(|n| n.is_element()) {
+        let d = node.parent().map_or(0, |p| depth[p.id().get_usize()]) + 1;
+        depth[node.id().get_usize()] = d;
+        if d > MAX_XML_DEPTH {
+            let line = doc.text_pos_at(node.range().start).row;
+            return Err(format!(
+                "line {line}: elements nest deeper than {MAX_XML_DEPTH} levels"
+            ));
         }
     }
     Ok(())
@@ -142,36 +172,14 @@ impl Resolver<'_> {
 }
 
 fn build(robot: &urdf_rs::Robot, res: &Resolver) -> std::result::Result<Loaded, String> {
-    let mut warnings = Vec::new();
     let links: HashMap<&str, &urdf_rs::Link> =
         robot.links.iter().map(|l| (l.name.as_str(), l)).collect();
     if links.len() != robot.links.len() {
         return Err("two <link> elements have the same name".into());
     }
-    let mut children: HashMap<&str, Vec<&urdf_rs::Joint>> = HashMap::new();
-    for j in &robot.joints {
-        for (role, name) in [("parent", &j.parent.link), ("child", &j.child.link)] {
-            if !links.contains_key(name.as_str()) {
-                return Err(format!(
-                    "<joint name=\"{}\">: {role} link '{name}' is not defined",
-                    j.name
-                ));
-            }
-        }
-        children.entry(j.parent.link.as_str()).or_default().push(j);
-    }
-    let roots: Vec<&str> = robot
-        .links
-        .iter()
-        .map(|l| l.name.as_str())
-        .filter(|n| !robot.joints.iter().any(|j| j.child.link == *n))
-        .collect();
-    let root = match roots.as_slice() {
-        [r] => *r,
-        [] => return Err("no root link: every link is some joint's child (a loop)".into()),
-        many => return Err(format!("more than one root link: {}", many.join(", "))),
-    };
-
+    let children = check_joints(robot, &links)?;
+    let root = find_root(robot)?;
+    let mut warnings = Vec::new();
     let mut base = Link {
         name: root.into(),
         inertial: Inertial::ZERO,
@@ -184,45 +192,141 @@ fn build(robot: &urdf_rs::Robot, res: &Resolver) -> std::result::Result<Loaded, 
         res,
         &mut warnings,
     )?;
-    let mut joints: Vec<Joint> = Vec::new();
-    let mut model_links: Vec<Link> = Vec::new();
-    // Pose of the current link's frame in the frame of the last movable joint's child (or base).
-    let mut fixed_offset = nalgebra::Isometry3::identity();
-    let mut current = root;
+    let chain = walk_chain(root, &children, &links, &mut base, res, &mut warnings)?;
+    check_connected(robot, &chain.visited)?;
+    check_moving_masses(&chain.links)?;
+    let n = chain.joints.len();
+    Ok(Loaded {
+        model: RobotModel {
+            name: robot.name.clone(),
+            base,
+            joints: chain.joints,
+            links: chain.links,
+            flange_name: chain.tip.into(),
+            last_t_flange: chain.tip_offset,
+            armature: default_armature(n),
+            tool: None,
+        },
+        warnings,
+    })
+}
+
+/// Child joints by parent link, after checking that joint names are unique, that both ends of
+/// every joint exist and differ, and that no link is the child of two joints.
+fn check_joints<'a>(
+    robot: &'a urdf_rs::Robot,
+    links: &HashMap<&str, &urdf_rs::Link>,
+) -> std::result::Result<HashMap<&'a str, Vec<&'a urdf_rs::Joint>>, String> {
+    let mut names = HashSet::new();
+    let mut parent_of: HashMap<&str, &str> = HashMap::new();
+    let mut children: HashMap<&str, Vec<&urdf_rs::Joint>> = HashMap::new();
+    for j in &robot.joints {
+        let at = |what: String| format!("<joint name=\"{}\">: {what}", j.name);
+        if !names.insert(j.name.as_str()) {
+            return Err(at(
+                "a second joint has this name; joint names must be unique".into(),
+            ));
+        }
+        for (role, name) in [("parent", &j.parent.link), ("child", &j.child.link)] {
+            if !links.contains_key(name.as_str()) {
+                return Err(at(format!("{role} link '{name}' is not defined")));
+            }
+        }
+        if j.parent.link == j.child.link {
+            return Err(at(format!(
+                "parent and child are the same link '{}'",
+                j.child.link
+            )));
+        }
+        if let Some(other) = parent_of.insert(j.child.link.as_str(), j.name.as_str()) {
+            return Err(at(format!(
+                "link '{}' is already the child of joint '{other}'; a link has one parent",
+                j.child.link
+            )));
+        }
+        children.entry(j.parent.link.as_str()).or_default().push(j);
+    }
+    Ok(children)
+}
+
+/// The one link that is no joint's child.
+fn find_root(robot: &urdf_rs::Robot) -> std::result::Result<&str, String> {
+    let roots: Vec<&str> = robot
+        .links
+        .iter()
+        .map(|l| l.name.as_str())
+        .filter(|n| !robot.joints.iter().any(|j| j.child.link == *n))
+        .collect();
+    match roots.as_slice() {
+        [r] => Ok(*r),
+        [] => Err("no root link: every link is some joint's child (a loop)".into()),
+        many => Err(format!("more than one root link: {}", many.join(", "))),
+    }
+}
+
+/// The serial chain read from the root to the tip.
+struct Chain<'a> {
+    joints: Vec<Joint>,
+    links: Vec<Link>,
+    /// The last link reached (the flange frame).
+    tip: &'a str,
+    /// Pose of the tip's frame in the last moving link's frame.
+    tip_offset: nalgebra::Isometry3<f64>,
+    /// Every link reached, the root included.
+    visited: HashSet<&'a str>,
+}
+
+/// Walks from the root along the one child joint of each link, folding fixed joints into the link
+/// before them; refuses a branch.
+fn walk_chain<'a>(
+    root: &'a str,
+    children: &HashMap<&'a str, Vec<&'a urdf_rs::Joint>>,
+    links: &HashMap<&str, &urdf_rs::Link>,
+    base: &mut Link,
+    res: &Resolver,
+    warnings: &mut Vec<String>,
+) -> std::result::Result<Chain<'a>, String> {
+    let mut chain = Chain {
+        joints: Vec::new(),
+        links: Vec::new(),
+        tip: root,
+        tip_offset: nalgebra::Isometry3::identity(),
+        visited: HashSet::from([root]),
+    };
     loop {
-        let next = children.get(current).map(Vec::as_slice).unwrap_or(&[]);
-        let joint = match next {
+        let joint = match children.get(chain.tip).map(Vec::as_slice).unwrap_or(&[]) {
             [] => break,
             [j] => *j,
             many => {
                 let names: Vec<&str> = many.iter().map(|j| j.name.as_str()).collect();
                 return Err(format!(
-                    "link '{current}' has {} child joints ({}): only serial chains are supported",
+                    "link '{}' has {} child joints ({}): only serial chains are supported",
+                    chain.tip,
                     many.len(),
                     names.join(", ")
                 ));
             }
         };
-        let origin = fixed_offset * iso_xyz_rpy(joint.origin.xyz.0, joint.origin.rpy.0);
+        let origin = chain.tip_offset * iso_xyz_rpy(joint.origin.xyz.0, joint.origin.rpy.0);
         let child = links[joint.child.link.as_str()];
         match &joint.joint_type {
             urdf_rs::JointType::Fixed => {
-                fixed_offset = origin;
-                let target = model_links.last_mut().unwrap_or(&mut base);
-                add_link_body(target, child, &fixed_offset, res, &mut warnings)?;
+                chain.tip_offset = origin;
+                let target = chain.links.last_mut().unwrap_or(&mut *base);
+                add_link_body(target, child, &origin, res, warnings)?;
             }
             urdf_rs::JointType::Revolute
             | urdf_rs::JointType::Continuous
             | urdf_rs::JointType::Prismatic => {
-                joints.push(movable_joint(joint, origin)?);
-                fixed_offset = nalgebra::Isometry3::identity();
+                chain.joints.push(movable_joint(joint, origin)?);
+                chain.tip_offset = nalgebra::Isometry3::identity();
                 let mut link = Link {
                     name: child.name.clone(),
                     inertial: Inertial::ZERO,
                     collision: vec![],
                 };
-                add_link_body(&mut link, child, &fixed_offset, res, &mut warnings)?;
-                model_links.push(link);
+                add_link_body(&mut link, child, &chain.tip_offset, res, warnings)?;
+                chain.links.push(link);
             }
             other => {
                 return Err(format!(
@@ -231,25 +335,51 @@ fn build(robot: &urdf_rs::Robot, res: &Resolver) -> std::result::Result<Loaded, 
                 ));
             }
         }
-        current = joint.child.link.as_str();
+        chain.tip = joint.child.link.as_str();
+        chain.visited.insert(chain.tip);
     }
-    if joints.is_empty() {
+    if chain.joints.is_empty() {
         return Err("the chain has no movable joint".into());
     }
-    let n = joints.len();
-    Ok(Loaded {
-        model: RobotModel {
-            name: robot.name.clone(),
-            base,
-            joints,
-            links: model_links,
-            flange_name: current.into(),
-            last_t_flange: fixed_offset,
-            armature: default_armature(n),
-            tool: None,
-        },
-        warnings,
-    })
+    Ok(chain)
+}
+
+/// Refuses links the chain from the root never reaches (a detached part or a loop of joints).
+fn check_connected(
+    robot: &urdf_rs::Robot,
+    visited: &HashSet<&str>,
+) -> std::result::Result<(), String> {
+    let unreached: Vec<&str> = robot
+        .links
+        .iter()
+        .map(|l| l.name.as_str())
+        .filter(|n| !visited.contains(n))
+        .collect();
+    if unreached.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "links not connected to the chain from the root: {}",
+            unreached.join(", ")
+        ))
+    }
+}
+
+/// A moving link (with the links fixed to it) needs a mass and an inertia the solver can invert.
+fn check_moving_masses(links: &[Link]) -> std::result::Result<(), String> {
+    for l in links {
+        let eig = l.inertial.inertia.symmetric_eigenvalues();
+        if l.inertial.mass_kg <= 0.0 || eig.iter().any(|&e| e <= 0.0) {
+            return Err(format!(
+                "<link name=\"{}\">: a moving link (with the links fixed to it) needs a mass > 0 kg \
+                 and a positive-definite inertia; it has {} kg and principal inertias {:?} kg m^2",
+                l.name,
+                l.inertial.mass_kg,
+                eig.as_slice()
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn movable_joint(
@@ -306,6 +436,14 @@ fn movable_joint(
     })
 }
 
+/// A rigid body's inertia: principal moments non-negative and obeying the triangle inequality
+/// (each at most the sum of the other two), with a relative tolerance for rounded files.
+fn physical_inertia(inertia: &Matrix3<f64>) -> bool {
+    let e = inertia.symmetric_eigenvalues();
+    let tol = 1e-6 * e.iter().map(|v| v.abs()).sum::<f64>() + 1e-12;
+    e.iter().all(|&v| v >= -tol) && (0..3).all(|k| e[k] <= e[(k + 1) % 3] + e[(k + 2) % 3] + tol)
+}
+
 /// Adds a URDF link's inertial and collision shapes to `target`, the link sitting at `pose` in
 /// `target`'s frame.
 fn add_link_body(
@@ -327,8 +465,12 @@ fn add_link_body(
     let inertia = Matrix3::new(
         t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz,
     );
-    if i.mass.value > 0.0 && !inertia.symmetric_eigenvalues().iter().all(|&e| e >= -1e-12) {
-        return Err(at("<inertia> is not positive semi-definite".into()));
+    if i.mass.value > 0.0 && !physical_inertia(&inertia) {
+        return Err(at(
+            "<inertia> is not a physical inertia: its principal moments must be >= 0 and each \
+             at most the sum of the other two"
+                .into(),
+        ));
     }
     let own = Inertial {
         mass_kg: i.mass.value,

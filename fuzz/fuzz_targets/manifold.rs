@@ -1,0 +1,9 @@
+#![no_main]
+//! libFuzzer target: the `manifold` property of `harness.rs`.
+
+// Each target uses one of the harness's properties; the others belong to the other targets.
+#[allow(dead_code)]
+#[path = "../harness.rs"]
+mod harness;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| harness::manifold(data));
