@@ -372,7 +372,7 @@ fn merge_if_convex(
 }
 
 /// The signed turn (radians, positive to the left) at `v` walking u -> v -> w.
-pub fn turn(u: P2, v: P2, w: P2) -> f64 {
+fn turn(u: P2, v: P2, w: P2) -> f64 {
     let (a, b) = (v - u, w - v);
     cross(a, b).atan2(a.dot(&b))
 }
@@ -401,8 +401,8 @@ pub fn simplify_ring(ring: &[P2], tol: f64) -> Vec<P2> {
 /// `None` if an edge would collapse or reverse within that distance (a straight-skeleton edge
 /// event, see [`collapse_distance`]), in which case the caller must use a smaller distance.
 pub fn offset_left(ring: &[P2], distance: f64) -> Option<Vec<P2>> {
-    (collapse_distance(ring) > distance).then(|| {
-        let mitres = mitres(ring);
+    let mitres = mitres(ring);
+    (first_collapse(ring, &mitres) > distance).then(|| {
         ring.iter()
             .zip(&mitres)
             .map(|(p, m)| p + m * distance)
@@ -413,8 +413,12 @@ pub fn offset_left(ring: &[P2], distance: f64) -> Option<Vec<P2>> {
 /// The smallest left offset at which an edge of the ring collapses (its mitred end points meet),
 /// infinite if none does: a feature of the profile thinner than twice a chamfer cannot carry it.
 pub fn collapse_distance(ring: &[P2]) -> f64 {
+    first_collapse(ring, &mitres(ring))
+}
+
+/// [`collapse_distance`] with the ring's mitres given.
+fn first_collapse(ring: &[P2], mitres: &[Vector2<f64>]) -> f64 {
     let n = ring.len();
-    let mitres = mitres(ring);
     (0..n)
         .map(|i| {
             let j = (i + 1) % n;
