@@ -6,7 +6,7 @@
 //! The loaders read files, as the command line does, so each input goes through a scratch file
 //! of this process and thread with the extension the loader dispatches on.
 
-use pegtwin::campaign::run::read_records;
+use pegtwin::campaign::records::read_records;
 use pegtwin::campaign::scenario::Scenario;
 use pegtwin::method::manifold::{Manifold, ManifoldMeta, NORMAL_LENGTH_TOLERANCE, UNITS, file};
 use pegtwin::method::register::{RegistrationConfig, register};

@@ -21,15 +21,17 @@
 //!     in [`method::config`], its random streams in [`method::seeds`], and the cell's ports in
 //!     [`method::session`].
 //! - [`campaign`]: many trials. Scenario files ([`campaign::scenario`]), parallel, sharded,
-//!   resumable runs ([`campaign::run`]), statistics and tables ([`campaign::summary`]), figures
+//!   resumable runs ([`campaign::run`]) whose records stream from disk ([`campaign::records`]),
+//!   statistics and tables ([`campaign::summary`]), figures
 //!   and report.html ([`campaign::report`]), gain tuning ([`campaign::tune`]) and the regression
 //!   gate ([`campaign::check`]).
 //!
-//! Below all three: [`pose`] (6-D poses and SE(3)), [`error`], [`files`]. The command line lives in
+//! Below all three: [`pose`] (6-D poses and SE(3)), [`error`], [`files`], [`figures`] (PNG and SVG). The command line lives in
 //! the binary (`src/main.rs`, `src/cli/`) and only parses, calls this library and prints.
 
 pub mod campaign;
 pub mod error;
+pub mod figures;
 pub mod files;
 pub mod method;
 pub mod pose;

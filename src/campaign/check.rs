@@ -180,8 +180,9 @@ pub fn findings_table(findings: &[Finding]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::campaign::records::{TrialSpec, read_records};
     use crate::campaign::run::{
-        CampaignOptions, Prepared, RunOptions, Shard, TrialSpec, campaign_with, run_one,
+        CampaignOptions, Prepared, RunOptions, Shard, campaign_with, run_one,
     };
     use crate::campaign::scenario::Condition;
     use crate::campaign::scenario::Scenario;
@@ -269,26 +270,23 @@ mod tests {
             resume: false,
         };
         let out = campaign_with(&s, &dir.join("out"), whole, &run, &inject).unwrap();
-        let outcomes: Vec<&str> = out
-            .records
-            .iter()
-            .map(|r| r.result.outcome.as_str())
-            .collect();
+        let records = read_records(&out.trials.path, false).unwrap();
+        let outcomes: Vec<&str> = records.iter().map(|r| r.result.outcome.as_str()).collect();
         assert_eq!(outcomes[1..], ["error", "error"]);
         assert_ne!(outcomes[0], "error");
         assert_eq!(
-            out.records[1].result.error_message.as_deref(),
+            records[1].result.error_message.as_deref(),
             Some("panicked: injected")
         );
         assert!(
-            out.records[2]
+            records[2]
                 .result
                 .error_message
                 .as_deref()
                 .unwrap()
                 .contains("injected error")
         );
-        let summary = summarise(&s, &out.records);
+        let summary = summarise(&s, &out.trials).unwrap();
         assert_eq!(summary.cells[0].error_trials, 2);
         let mut baseline = Baseline::from_summary(&summary);
         baseline.cells[0].error_trials = 0;

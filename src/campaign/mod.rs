@@ -2,6 +2,7 @@
 //! figures, gain tuning and the regression gate.
 
 pub mod check;
+pub mod records;
 pub mod report;
 pub mod run;
 pub mod scenario;

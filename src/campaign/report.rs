@@ -6,15 +6,15 @@
 //!   2.5 deg are drawn red as in the paper (Fig. 5);
 //! - `fig6_fz`: |Fz| during insertion, mean +- 1 std, for successes and failures of each method
 //!   (Fig. 6).
-//!
-//! Text is drawn with the DejaVu Sans font shipped in `assets/fonts` (no system font lookup), so
-//! the figures look the same on every machine.
 
-use super::summary::{AXES, MeanStd, Summary, abs_errors, wilson_interval};
-use crate::campaign::run::TrialRecord;
+use super::summary::{
+    AXES, MeanStd, Moments, Pass, Summary, SummaryTally, abs_errors, two_passes, wilson_interval,
+};
+use crate::campaign::records::{RecordSource, TrialRecord};
 use crate::campaign::scenario::Scenario;
 use crate::campaign::tune::Evaluation;
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::figures::{self, DrawResult, err};
 use crate::method::config::Method;
 use crate::method::trial::FZ_PROFILE_DT_S;
 use plotters::coord::Shift;
@@ -22,7 +22,6 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
-const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 const SIZE: (u32, u32) = (960, 540);
 
 /// Position error bins, mm (upper edges; the last is open).
@@ -32,37 +31,14 @@ const ORIENTATION_BINS_DEG: [f64; 7] = [0.5, 1.0, 1.5, 2.0, 2.5, 5.0, f64::INFIN
 /// The paper's critical orientation error, deg.
 const CRITICAL_DEG: f64 = 2.5;
 
-fn register_font() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
-            .map_err(|_| ())
-            .expect("the shipped font parses");
-    });
-}
-
-type DrawResult = std::result::Result<(), String>;
-
-fn err<E: std::fmt::Debug>(e: E) -> String {
-    format!("{e:?}")
-}
-
-/// Renders one figure to `figures/{name}.png` and `.svg`.
+/// Renders one figure of the report to `dir/figures/{name}.png` and `.svg`.
 fn render(
     dir: &Path,
     name: &str,
     draw_png: impl Fn(DrawingArea<BitMapBackend, Shift>) -> DrawResult,
     draw_svg: impl Fn(DrawingArea<SVGBackend, Shift>) -> DrawResult,
 ) -> Result<()> {
-    let figures = dir.join("figures");
-    std::fs::create_dir_all(&figures)
-        .map_err(|e| Error::file(&figures, format!("cannot create: {e}")))?;
-    let png = figures.join(format!("{name}.png"));
-    let svg = figures.join(format!("{name}.svg"));
-    let fail = |path: &Path, e: String| Error::file(path, format!("cannot draw: {e}"));
-    draw_png(BitMapBackend::new(&png, SIZE).into_drawing_area()).map_err(|e| fail(&png, e))?;
-    draw_svg(SVGBackend::new(&svg, SIZE).into_drawing_area()).map_err(|e| fail(&svg, e))?;
-    Ok(())
+    figures::render(&dir.join("figures"), name, SIZE, draw_png, draw_svg)
 }
 
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
@@ -211,25 +187,105 @@ fn draw_success<DB: DrawingBackend>(
     root.present().map_err(err)
 }
 
-/// Success rate and count per bin of `value` (the largest of some absolute errors).
-fn binned(
-    records: &[&TrialRecord],
-    edges: &[f64],
-    value: impl Fn(&[f64; 6]) -> f64,
-) -> Vec<(usize, usize)> {
-    let mut bins = vec![(0, 0); edges.len()];
-    for r in records {
-        if let Some(e) = abs_errors(r) {
-            let v = value(&e);
-            let b = edges
-                .iter()
-                .position(|&edge| v < edge)
-                .unwrap_or(edges.len() - 1);
-            bins[b].0 += 1;
-            bins[b].1 += usize::from(r.result.success);
+/// Trials and successes per bin of an error (the largest of some absolute errors).
+#[derive(Clone, Debug)]
+struct Bins {
+    edges: &'static [f64],
+    counts: Vec<(usize, usize)>,
+}
+
+impl Bins {
+    fn new(edges: &'static [f64]) -> Self {
+        Bins {
+            edges,
+            counts: vec![(0, 0); edges.len()],
         }
     }
-    bins
+
+    fn add(&mut self, value: f64, success: bool) {
+        let b = self
+            .edges
+            .iter()
+            .position(|&edge| value < edge)
+            .unwrap_or(self.edges.len() - 1);
+        self.counts[b].0 += 1;
+        self.counts[b].1 += usize::from(success);
+    }
+}
+
+/// |Fz| during insertion of one group of trials: mean and std per profile sample.
+#[derive(Clone, Debug, Default)]
+struct ProfileTally {
+    trials: usize,
+    samples: Vec<Moments>,
+}
+
+impl ProfileTally {
+    fn add(&mut self, profile_n: &[f64], pass: Pass) {
+        if pass == Pass::Mean {
+            self.trials += 1;
+        }
+        if self.samples.len() < profile_n.len() {
+            self.samples.resize(profile_n.len(), Moments::default());
+        }
+        for (m, &f) in self.samples.iter_mut().zip(profile_n) {
+            m.add(pass, f);
+        }
+    }
+
+    /// (time s, mean N, std N) per profile sample that at least one trial reached.
+    fn band(&self) -> Vec<(f64, f64, f64)> {
+        self.samples
+            .iter()
+            .enumerate()
+            .filter_map(|(k, m)| {
+                m.finish()
+                    .map(|m| (k as f64 * FZ_PROFILE_DT_S, m.mean, m.std))
+            })
+            .collect()
+    }
+}
+
+/// The groups of the |Fz| figure: method, success, label, colour.
+const FZ_GROUPS: [(Method, bool, &str, RGBColor); 4] = [
+    (Method::Manifold, true, "manifold, success", GREEN),
+    (Method::Manifold, false, "manifold, failure", BLUE),
+    (Method::Direct, true, "direct, success", MAGENTA),
+    (Method::Direct, false, "direct, failure", RED),
+];
+
+/// What the figures need from the records, gathered over [`two_passes`] (no record is kept).
+#[derive(Clone, Debug)]
+struct FigureTally {
+    position: Bins,
+    orientation: Bins,
+    fz: [ProfileTally; 4],
+}
+
+impl FigureTally {
+    fn new() -> Self {
+        FigureTally {
+            position: Bins::new(&POSITION_BINS_MM),
+            orientation: Bins::new(&ORIENTATION_BINS_DEG),
+            fz: Default::default(),
+        }
+    }
+
+    fn add(&mut self, r: &TrialRecord, pass: Pass) {
+        let res = &r.result;
+        if let (Pass::Mean, Some(e)) = (pass, abs_errors(r))
+            && res.method == Method::Manifold
+        {
+            self.position.add(e[0].max(e[1]), res.success);
+            self.orientation.add(e[3].max(e[4]).max(e[5]), res.success);
+        }
+        let group = FZ_GROUPS
+            .iter()
+            .position(|g| g.0 == res.method && g.1 == res.success);
+        if let Some(g) = group {
+            self.fz[g].add(&res.insert_fz_n, pass);
+        }
+    }
 }
 
 fn bin_labels(edges: &[f64]) -> Vec<String> {
@@ -252,13 +308,12 @@ fn draw_binned<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     title: &str,
     axis: &str,
-    edges: &[f64],
-    bins: &[(usize, usize)],
+    bins: &Bins,
     critical: Option<f64>,
 ) -> DrawResult {
-    let mut chart = category_chart(area, title, 18, bin_labels(edges), 115.0, Some(axis))?;
+    let mut chart = category_chart(area, title, 18, bin_labels(bins.edges), 115.0, Some(axis))?;
     let mut lo = 0.0;
-    for (i, (&(total, ok), &hi)) in bins.iter().zip(edges).enumerate() {
+    for (i, (&(total, ok), &hi)) in bins.counts.iter().zip(bins.edges).enumerate() {
         let past_critical = critical.is_some_and(|c| lo >= c);
         let colour = if past_critical {
             RED.mix(0.7)
@@ -298,26 +353,22 @@ fn draw_binned<DB: DrawingBackend>(
 
 fn draw_errors<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
-    records: &[&TrialRecord],
+    tally: &FigureTally,
 ) -> DrawResult {
     root.fill(&WHITE).map_err(err)?;
     let (left, right) = root.split_horizontally(SIZE.0 / 2);
-    let pos = binned(records, &POSITION_BINS_MM, |e| e[0].max(e[1]));
-    let rot = binned(records, &ORIENTATION_BINS_DEG, |e| e[3].max(e[4]).max(e[5]));
     draw_binned(
         &left,
         "Success vs position error",
         "max(|x|, |y|) error (mm)",
-        &POSITION_BINS_MM,
-        &pos,
+        &tally.position,
         None,
     )?;
     draw_binned(
         &right,
         "Success vs orientation error",
         "max(|roll|, |pitch|, |yaw|) error (deg)",
-        &ORIENTATION_BINS_DEG,
-        &rot,
+        &tally.orientation,
         Some(CRITICAL_DEG),
     )?;
     root.present().map_err(err)
@@ -326,47 +377,19 @@ fn draw_errors<DB: DrawingBackend>(
 /// A labelled, coloured band of (time s, mean N, std N).
 type ProfileGroup = (String, RGBAColor, Vec<(f64, f64, f64)>);
 
-/// Mean and std of |Fz| per profile sample over a group of trials (samples that at least one
-/// trial reached).
-fn profile_band(records: &[&TrialRecord]) -> Vec<(f64, f64, f64)> {
-    let len = records
-        .iter()
-        .map(|r| r.result.insert_fz_n.len())
-        .max()
-        .unwrap_or(0);
-    (0..len)
-        .filter_map(|k| {
-            let v: Vec<f64> = records
-                .iter()
-                .filter_map(|r| r.result.insert_fz_n.get(k).copied())
-                .collect();
-            MeanStd::of(&v).map(|m| (k as f64 * FZ_PROFILE_DT_S, m.mean, m.std))
-        })
-        .collect()
-}
-
-fn draw_fz<DB: DrawingBackend>(
-    root: DrawingArea<DB, Shift>,
-    records: &[&TrialRecord],
-) -> DrawResult {
+fn draw_fz<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, tally: &FigureTally) -> DrawResult {
     root.fill(&WHITE).map_err(err)?;
-    let groups: Vec<ProfileGroup> = [
-        (Method::Manifold, true, "manifold, success", GREEN),
-        (Method::Manifold, false, "manifold, failure", BLUE),
-        (Method::Direct, true, "direct, success", MAGENTA),
-        (Method::Direct, false, "direct, failure", RED),
-    ]
-    .into_iter()
-    .filter_map(|(method, success, label, colour)| {
-        let rs: Vec<&TrialRecord> = records
-            .iter()
-            .filter(|r| r.result.method == method && r.result.success == success)
-            .copied()
-            .collect();
-        let band = profile_band(&rs);
-        (!band.is_empty()).then(|| (format!("{label} (n={})", rs.len()), colour.to_rgba(), band))
-    })
-    .collect();
+    let groups: Vec<ProfileGroup> = FZ_GROUPS
+        .iter()
+        .zip(&tally.fz)
+        .filter_map(|(&(_, _, label, colour), profile)| {
+            let band = profile.band();
+            (!band.is_empty()).then(|| {
+                let label = format!("{label} (n={})", profile.trials);
+                (label, colour.to_rgba(), band)
+            })
+        })
+        .collect();
     let t_max = groups
         .iter()
         .flat_map(|g| g.2.last().map(|p| p.0))
@@ -455,7 +478,6 @@ fn draw_tune<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, evals: &[Evaluati
 
 /// Draws the gain search (`figures/tune.png` and `.svg`).
 pub fn write_tune(dir: &Path, evals: &[Evaluation]) -> Result<()> {
-    register_font();
     render(
         dir,
         "tune",
@@ -464,9 +486,16 @@ pub fn write_tune(dir: &Path, evals: &[Evaluation]) -> Result<()> {
     )
 }
 
-/// Writes `summary.json`, `summary.csv` and the report (`report.html`, `figures/`) into `dir`.
-pub fn write_all(dir: &Path, scenario: &Scenario, records: &[TrialRecord]) -> Result<Summary> {
-    let summary = super::summary::summarise(scenario, records);
+/// Writes `summary.json`, `summary.csv` and the report (`report.html`, `figures/`) into `dir`,
+/// from two streaming passes over `source`.
+pub fn write_all(dir: &Path, scenario: &Scenario, source: &dyn RecordSource) -> Result<Summary> {
+    let mut cells = SummaryTally::new(scenario);
+    let mut figures = FigureTally::new();
+    two_passes(source, &mut |r, pass| {
+        cells.add(r, pass);
+        figures.add(r, pass);
+    })?;
+    let summary = cells.finish(scenario);
     let write = crate::files::write_atomically;
     write(
         &dir.join("summary.json"),
@@ -476,18 +505,17 @@ pub fn write_all(dir: &Path, scenario: &Scenario, records: &[TrialRecord]) -> Re
         &dir.join("summary.csv"),
         &super::summary::summary_csv(&summary),
     )?;
-    write_report(dir, scenario, records, &summary)?;
+    write_report(dir, scenario, &summary, &figures)?;
     Ok(summary)
 }
 
 /// Draws the three figures into `dir/figures` and writes `dir/report.html`.
-pub fn write_report(
+fn write_report(
     dir: &Path,
     scenario: &Scenario,
-    records: &[TrialRecord],
     summary: &Summary,
+    figures: &FigureTally,
 ) -> Result<()> {
-    register_font();
     let mut geometries: Vec<String> = Vec::new();
     for c in &summary.cells {
         if !geometries.contains(&c.cell.geometry) {
@@ -501,18 +529,18 @@ pub fn write_report(
         |a| draw_success(a, &geometries, &series),
         |a| draw_success(a, &geometries, &series),
     )?;
-    let manifold: Vec<&TrialRecord> = records
-        .iter()
-        .filter(|r| r.result.method == Method::Manifold)
-        .collect();
     render(
         dir,
         "fig5_errors",
-        |a| draw_errors(a, &manifold),
-        |a| draw_errors(a, &manifold),
+        |a| draw_errors(a, figures),
+        |a| draw_errors(a, figures),
     )?;
-    let all: Vec<&TrialRecord> = records.iter().collect();
-    render(dir, "fig6_fz", |a| draw_fz(a, &all), |a| draw_fz(a, &all))?;
+    render(
+        dir,
+        "fig6_fz",
+        |a| draw_fz(a, figures),
+        |a| draw_fz(a, figures),
+    )?;
     crate::files::write_atomically(&dir.join("report.html"), html(scenario, summary).as_bytes())
 }
 

@@ -13,6 +13,10 @@
 //! (cell, trial) order once the run is complete. A kill can only cut the last line short;
 //! `--resume` drops that line, keeps the finished trials and runs the rest.
 
+use crate::campaign::records::{
+    TrialRecord, TrialSpec, TrialsFile, check_complete, check_entries_belong, index_records,
+    write_sorted,
+};
 use crate::campaign::scenario::{Condition, Scenario};
 use crate::error::{Error, Result};
 use crate::method::config::Method;
@@ -75,25 +79,6 @@ pub struct CampaignFile {
     pub fingerprint: String,
     pub shard: Shard,
     pub scenario: Scenario,
-}
-
-/// One line of `trials.jsonl`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct TrialRecord {
-    /// Index of the cell in the scenario's cell order.
-    pub cell: usize,
-    /// Index of the trial within its cell.
-    pub trial: usize,
-    #[serde(flatten)]
-    pub result: TrialResult,
-}
-
-/// A trial to run.
-#[derive(Clone, Copy, Debug)]
-pub struct TrialSpec {
-    pub cell: usize,
-    pub trial: usize,
-    pub seed: u64,
 }
 
 /// The seed of trial `index` of a cell (see [`seeds::trial`]: the same for every method of a pair).
@@ -224,9 +209,23 @@ fn stream_trials_with(
     run: &RunOne,
     on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
 ) -> Result<()> {
-    trials
-        .par_iter()
-        .try_for_each(|spec| on_done(&guarded_trial(scenario, prepared, spec, run)))
+    trials.par_iter().try_for_each(|spec| {
+        let record = guarded_trial(scenario, prepared, spec, run);
+        release_freed_memory();
+        on_done(&record)
+    })
+}
+
+/// Hands the pages the allocator holds free back to the system, after each trial. glibc keeps
+/// what a trial freed inside its per-thread arenas (about 3 MB each with two workers, while the
+/// live heap between trials is under 1 MB), and fragmentation makes that pile creep up over
+/// thousands of trials; `malloc_trim` returns the free pages (docs/campaigns.md, "Soak").
+fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only gives free pages back to the kernel; no live allocation moves.
+    unsafe {
+        libc::malloc_trim(0);
+    }
 }
 
 /// One trial's record, whatever happens in it: an error or a panic becomes outcome `error` with
@@ -305,8 +304,10 @@ pub struct CampaignOptions {
 
 /// The outcome of `campaign`.
 pub struct CampaignRun {
-    /// All records of the folder, in (cell, trial) order.
-    pub records: Vec<TrialRecord>,
+    /// The folder's `trials.jsonl`, complete and in (cell, trial) order.
+    pub trials: TrialsFile,
+    /// How many trials it holds.
+    pub count: usize,
     /// Trials run now (the rest were already there).
     pub ran: usize,
 }
@@ -335,15 +336,16 @@ pub(crate) fn campaign_with(
     };
     let is_new = check_folder(out, &described, options.resume)?;
     let trials_path = out.join(TRIALS_FILE);
-    let done = read_records(&trials_path, true)?;
-    let finished: BTreeSet<(usize, usize)> = done.iter().map(|r| (r.cell, r.trial)).collect();
+    let done = index_records(&trials_path, true)?;
+    let finished: BTreeSet<(usize, usize)> = done.iter().map(|e| (e.cell, e.trial)).collect();
     let wanted = shard_trials(scenario, options.shard);
-    let pending: Vec<TrialSpec> = wanted
+    let mut pending: Vec<TrialSpec> = wanted
         .iter()
         .filter(|t| !finished.contains(&(t.cell, t.trial)))
         .copied()
         .collect();
-    check_records_belong(&done, &wanted, &trials_path)?;
+    interleave_cells(&mut pending);
+    check_entries_belong(&done, &wanted, &trials_path)?;
     let resumed = done.len();
     drop(done);
     let prepared = prepare(scenario, &pending, run)?;
@@ -370,13 +372,24 @@ pub(crate) fn campaign_with(
     let ran = stream_trials_with(scenario, &prepared, &pending, run_one, &append);
     run.progress.trials_finished();
     ran?;
-    let mut records = read_records(&trials_path, false)?;
-    sort_and_check_complete(&mut records, &wanted, &trials_path)?;
-    write_records(&trials_path, &records)?;
+    let entries = index_records(&trials_path, false)?;
+    check_complete(&entries, &wanted, &trials_path)?;
+    let trials = entries.len();
+    write_sorted(&trials_path, &[(trials_path.clone(), entries)])?;
     Ok(CampaignRun {
-        records,
+        trials: TrialsFile { path: trials_path },
+        count: trials,
         ran: pending.len(),
     })
+}
+
+/// Puts `trials` in trial-major order (trial 0 of every cell, then trial 1, ...): every cell
+/// advances together, so a stopped run holds a like share of each cell, and the parallel
+/// workers, which start from different ends of the list, run a like mix of methods (a cell-major
+/// list gave one worker the manifold method's cell and the other the direct one's until one was
+/// done). Results do not depend on the order: a trial is a function of its seed.
+fn interleave_cells(trials: &mut [TrialSpec]) {
+    trials.sort_by_key(|t| (t.trial, t.cell));
 }
 
 /// Checks, writing nothing, that the folder is new (or empty: `Ok(true)`) or holds this campaign
@@ -448,125 +461,17 @@ pub fn read_campaign(dir: &Path) -> Result<CampaignFile> {
     serde_json::from_str(&text).map_err(|e| Error::file(&path, format!("not a campaign file: {e}")))
 }
 
-/// Reads `trials.jsonl`. With `repair`, a last line cut short by a kill is dropped (and the file
-/// truncated to its complete lines); any other unreadable line is an error naming it.
-pub fn read_records(path: &Path, repair: bool) -> Result<Vec<TrialRecord>> {
-    use std::io::BufRead;
-    let file = match std::fs::File::open(path) {
-        Ok(f) => f,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(Error::file(path, format!("cannot read: {e}"))),
-    };
-    let mut reader = std::io::BufReader::new(file);
-    let mut records = Vec::new();
-    let mut complete_len = 0;
-    let mut line = String::new();
-    for n in 0.. {
-        line.clear();
-        let read = reader
-            .read_line(&mut line)
-            .map_err(|e| Error::file(path, format!("line {}: cannot read: {e}", n + 1)))?;
-        if read == 0 {
-            break;
-        }
-        let last_and_cut = !line.ends_with('\n');
-        match serde_json::from_str::<TrialRecord>(line.trim_end()) {
-            Ok(r) if !last_and_cut => {
-                records.push(r);
-                complete_len += line.len();
-            }
-            _ if last_and_cut && repair => {
-                let f = std::fs::OpenOptions::new()
-                    .write(true)
-                    .open(path)
-                    .map_err(|e| Error::file(path, format!("cannot repair: {e}")))?;
-                f.set_len(complete_len as u64)
-                    .map_err(|e| Error::file(path, format!("cannot repair: {e}")))?;
-            }
-            Ok(_) => {
-                return Err(Error::file(
-                    path,
-                    format!("line {}: cut short (no newline)", n + 1),
-                ));
-            }
-            Err(e) => {
-                return Err(Error::file(
-                    path,
-                    format!("line {}: not a trial record: {e}", n + 1),
-                ));
-            }
-        }
-    }
-    Ok(records)
-}
-
-fn check_records_belong(records: &[TrialRecord], wanted: &[TrialSpec], path: &Path) -> Result<()> {
-    let wanted: BTreeMap<(usize, usize), u64> =
-        wanted.iter().map(|t| ((t.cell, t.trial), t.seed)).collect();
-    let mut seen = BTreeSet::new();
-    for r in records {
-        let key = (r.cell, r.trial);
-        if wanted.get(&key) != Some(&r.result.seed) {
-            return Err(Error::file(
-                path,
-                format!(
-                    "holds trial {} of cell {} (seed {}), which this campaign does not run",
-                    r.trial, r.cell, r.result.seed
-                ),
-            ));
-        }
-        if !seen.insert(key) {
-            return Err(Error::file(
-                path,
-                format!("holds trial {} of cell {} twice", r.trial, r.cell),
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Sorts records by (cell, trial) and checks they are exactly `wanted`.
-fn sort_and_check_complete(
-    records: &mut [TrialRecord],
-    wanted: &[TrialSpec],
-    path: &Path,
-) -> Result<()> {
-    check_records_belong(records, wanted, path)?;
-    if records.len() != wanted.len() {
-        return Err(Error::file(
-            path,
-            format!(
-                "holds {} of the {} trials expected",
-                records.len(),
-                wanted.len()
-            ),
-        ));
-    }
-    records.sort_by_key(|r| (r.cell, r.trial));
-    Ok(())
-}
-
-/// Writes records as JSON lines, atomically.
-pub fn write_records(path: &Path, records: &[TrialRecord]) -> Result<()> {
-    crate::files::write_atomically_with(path, |w| {
-        for r in records {
-            serde_json::to_writer(&mut *w, r)?;
-            w.write_all(b"\n")?;
-        }
-        Ok(())
-    })
-}
-
 /// Joins the shards in `dirs` into one campaign folder `out`: same scenario, every shard of the
-/// split once, every trial once. Returns the scenario and the records in (cell, trial) order.
-pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, Vec<TrialRecord>)> {
+/// split once, every trial once. Returns the scenario and the merged `trials.jsonl`, in (cell,
+/// trial) order, with its number of trials.
+pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, TrialsFile, usize)> {
     let first = dirs
         .first()
         .ok_or_else(|| Error::Input("merge: expected at least one shard folder".into()))?;
     let head = read_campaign(first)?;
     let count = head.shard.count;
     let mut shards = BTreeSet::new();
-    let mut records = Vec::new();
+    let mut parts = Vec::new();
     for dir in dirs {
         let c = read_campaign(dir)?;
         if c.fingerprint != head.fingerprint {
@@ -590,9 +495,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, Vec<TrialRecord>
             ));
         }
         let path = dir.join(TRIALS_FILE);
-        let mut part = read_records(&path, false)?;
-        sort_and_check_complete(&mut part, &shard_trials(&c.scenario, c.shard), &path)?;
-        records.extend(part);
+        let entries = index_records(&path, false)?;
+        check_complete(&entries, &shard_trials(&c.scenario, c.shard), &path)?;
+        parts.push((path, entries));
     }
     if shards.len() != count {
         let missing: Vec<String> = (0..count)
@@ -604,7 +509,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, Vec<TrialRecord>
             missing.join(", ")
         )));
     }
-    records.sort_by_key(|r| (r.cell, r.trial));
+    let count = parts.iter().map(|p| p.1.len()).sum();
     let described = CampaignFile {
         shard: Shard::WHOLE,
         ..head
@@ -612,8 +517,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, Vec<TrialRecord>
     if check_folder(out, &described, false)? {
         create_folder(out, &described)?;
     }
-    write_records(&out.join(TRIALS_FILE), &records)?;
-    Ok((described.scenario, records))
+    let path = out.join(TRIALS_FILE);
+    write_sorted(&path, &parts)?;
+    Ok((described.scenario, TrialsFile { path }, count))
 }
 
 #[cfg(test)]

@@ -10,8 +10,9 @@
 //! - peak |Fz| during insertion, mean and standard deviation, for successes and failures apart;
 //! - mean simulated time per phase.
 
-use crate::campaign::run::TrialRecord;
+use crate::campaign::records::{RecordSource, TrialRecord};
 use crate::campaign::scenario::{Condition, Scenario};
+use crate::error::Result;
 use crate::method::config::Method;
 use serde::{Deserialize, Serialize};
 
@@ -40,18 +41,63 @@ pub struct MeanStd {
 
 impl MeanStd {
     pub fn of(values: &[f64]) -> Option<Self> {
-        if values.is_empty() {
-            return None;
+        let mut m = Moments::default();
+        for pass in [Pass::Mean, Pass::Spread] {
+            values.iter().for_each(|&v| m.add(pass, v));
         }
-        let n = values.len() as f64;
-        let mean = values.iter().sum::<f64>() / n;
-        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-        Some(MeanStd {
-            mean,
-            std: var.sqrt(),
-            n: values.len(),
+        m.finish()
+    }
+}
+
+/// Which of the two passes over the records a summary is in: means first, then the spread about
+/// them (the textbook two-pass variance, stable for the small spreads of errors in mm).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pass {
+    Mean,
+    Spread,
+}
+
+/// Mean and standard deviation of a stream, kept in O(1) memory over [`two_passes`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Moments {
+    n: usize,
+    sum: f64,
+    squares: f64,
+}
+
+impl Moments {
+    pub fn add(&mut self, pass: Pass, v: f64) {
+        match pass {
+            Pass::Mean => {
+                self.n += 1;
+                self.sum += v;
+            }
+            Pass::Spread => self.squares += (v - self.mean()).powi(2),
+        }
+    }
+
+    fn mean(&self) -> f64 {
+        self.sum / self.n as f64
+    }
+
+    /// The (population) statistics once both passes are done; `None` for an empty stream.
+    pub fn finish(&self) -> Option<MeanStd> {
+        (self.n > 0).then(|| MeanStd {
+            mean: self.mean(),
+            std: (self.squares / self.n as f64).sqrt(),
+            n: self.n,
         })
     }
+}
+
+/// Hands every record of `source` to `each` twice: once with [`Pass::Mean`], then once with
+/// [`Pass::Spread`].
+pub fn two_passes(
+    source: &dyn RecordSource,
+    each: &mut dyn FnMut(&TrialRecord, Pass),
+) -> Result<()> {
+    source.for_each(&mut |r| each(r, Pass::Mean))?;
+    source.for_each(&mut |r| each(r, Pass::Spread))
 }
 
 /// Axis names of the error columns.
@@ -100,111 +146,156 @@ pub fn abs_errors(r: &TrialRecord) -> Option<[f64; 6]> {
         .map(|e| [e.x_mm, e.y_mm, e.z_mm, e.roll_deg, e.pitch_deg, e.yaw_deg].map(f64::abs))
 }
 
-/// Summarises records cell by cell, in the scenario's cell order.
-pub fn summarise(scenario: &Scenario, records: &[TrialRecord]) -> Summary {
-    let cells = scenario
-        .cells()
-        .into_iter()
-        .enumerate()
-        .map(|(i, cell)| {
-            let rs: Vec<&TrialRecord> = records.iter().filter(|r| r.cell == i).collect();
-            summarise_cell(cell, &rs)
-        })
-        .collect();
-    Summary {
-        scenario: scenario.name.clone(),
-        fingerprint: scenario.fingerprint(),
-        pooled: pooled(scenario, records),
-        cells,
+/// Summarises records cell by cell, in the scenario's cell order (two passes over `source`).
+pub fn summarise(scenario: &Scenario, source: &dyn RecordSource) -> Result<Summary> {
+    let mut tally = SummaryTally::new(scenario);
+    two_passes(source, &mut |r, pass| tally.add(r, pass))?;
+    Ok(tally.finish(scenario))
+}
+
+/// The running statistics of every cell and pooled group, filled record by record.
+pub struct SummaryTally {
+    cells: Vec<CellTally>,
+    pooled: Vec<(Condition, CellTally)>,
+    /// The pooled group of each cell (none when nothing is pooled).
+    group_of: Vec<Option<usize>>,
+}
+
+impl SummaryTally {
+    pub fn new(scenario: &Scenario) -> Self {
+        let cells = scenario.cells();
+        let (pooled, group_of) = pooled_groups(scenario, &cells);
+        SummaryTally {
+            cells: vec![CellTally::default(); cells.len()],
+            pooled: pooled
+                .into_iter()
+                .map(|c| (c, CellTally::default()))
+                .collect(),
+            group_of,
+        }
+    }
+
+    /// Counts `r` in its cell and its pooled group (a record of no cell of the scenario is left
+    /// out).
+    pub fn add(&mut self, r: &TrialRecord, pass: Pass) {
+        if let Some(tally) = self.cells.get_mut(r.cell) {
+            tally.add(r, pass);
+        }
+        if let Some(&Some(g)) = self.group_of.get(r.cell) {
+            self.pooled[g].1.add(r, pass);
+        }
+    }
+
+    pub fn finish(&self, scenario: &Scenario) -> Summary {
+        Summary {
+            scenario: scenario.name.clone(),
+            fingerprint: scenario.fingerprint(),
+            cells: scenario
+                .cells()
+                .into_iter()
+                .zip(&self.cells)
+                .map(|(cell, t)| t.summary(cell))
+                .collect(),
+            pooled: self
+                .pooled
+                .iter()
+                .map(|(c, t)| t.summary(c.clone()))
+                .collect(),
+        }
     }
 }
 
-/// One summary per (method, t_obs) over every geometry and clearance, when there are several.
-fn pooled(scenario: &Scenario, records: &[TrialRecord]) -> Vec<CellSummary> {
-    let cells = scenario.cells();
+/// One group per (method, t_obs) over every geometry and clearance, when there are several
+/// pairs (geometry `all`, clearance the common one or 0 when several are pooled), and the group
+/// of each cell.
+fn pooled_groups(scenario: &Scenario, cells: &[Condition]) -> (Vec<Condition>, Vec<Option<usize>>) {
     let pairs = scenario.geometries.len() * scenario.clearances_mm.len();
     if pairs < 2 {
-        return Vec::new();
+        return (Vec::new(), vec![None; cells.len()]);
     }
-    let clearance = match scenario.clearances_mm.as_slice() {
+    let clearance_mm = match scenario.clearances_mm.as_slice() {
         [c] => *c,
         _ => 0.0,
     };
-    let mut groups: Vec<(Method, f64)> = Vec::new();
-    for c in &cells {
-        if !groups.contains(&(c.method, c.t_obs_s)) {
-            groups.push((c.method, c.t_obs_s));
-        }
-    }
-    groups
-        .into_iter()
-        .map(|(method, t_obs_s)| {
-            let rs: Vec<&TrialRecord> = records
-                .iter()
-                .filter(|r| cells[r.cell].method == method && cells[r.cell].t_obs_s == t_obs_s)
-                .collect();
-            let cell = Condition {
-                geometry: "all".into(),
-                clearance_mm: clearance,
-                method,
-                t_obs_s,
-            };
-            summarise_cell(cell, &rs)
+    let mut groups: Vec<Condition> = Vec::new();
+    let group_of = cells
+        .iter()
+        .map(|c| {
+            let same = |g: &Condition| g.method == c.method && g.t_obs_s == c.t_obs_s;
+            let g = groups.iter().position(same).unwrap_or_else(|| {
+                groups.push(Condition {
+                    geometry: "all".into(),
+                    clearance_mm,
+                    method: c.method,
+                    t_obs_s: c.t_obs_s,
+                });
+                groups.len() - 1
+            });
+            Some(g)
         })
-        .collect()
+        .collect();
+    (groups, group_of)
 }
 
-fn summarise_cell(cell: Condition, rs: &[&TrialRecord]) -> CellSummary {
-    let n = rs.len();
-    let successes = rs.iter().filter(|r| r.result.success).count();
-    let errors: Vec<[f64; 6]> = rs.iter().filter_map(|r| abs_errors(r)).collect();
-    let per_axis = |f: fn(&MeanStd) -> f64| -> Option<[f64; 6]> {
-        let cols: Vec<MeanStd> = (0..6)
-            .filter_map(|a| MeanStd::of(&errors.iter().map(|e| e[a]).collect::<Vec<_>>()))
-            .collect();
-        (cols.len() == 6).then(|| std::array::from_fn(|a| f(&cols[a])))
-    };
-    let peaks = |success: bool| {
-        let v: Vec<f64> = rs
-            .iter()
-            .filter(|r| r.result.success == success && r.result.fault.is_none())
-            .map(|r| r.result.peak_fz_n)
-            .collect();
-        MeanStd::of(&v)
-    };
-    let mean_of = |f: fn(&TrialRecord) -> f64| {
-        if n == 0 {
-            0.0
-        } else {
-            rs.iter().map(|r| f(r)).sum::<f64>() / n as f64
+/// The running statistics of one cell (or pooled group).
+#[derive(Clone, Debug, Default)]
+struct CellTally {
+    trials: usize,
+    successes: usize,
+    sim_faults: usize,
+    error_trials: usize,
+    abs_errors: [Moments; 6],
+    peak_fz_success: Moments,
+    peak_fz_failure: Moments,
+    phase_sums_s: [f64; 5],
+}
+
+impl CellTally {
+    fn add(&mut self, r: &TrialRecord, pass: Pass) {
+        let res = &r.result;
+        if let Some(e) = abs_errors(r) {
+            (0..6).for_each(|a| self.abs_errors[a].add(pass, e[a]));
         }
-    };
-    CellSummary {
-        trials: n,
-        successes,
-        sim_faults: rs.iter().filter(|r| r.result.fault.is_some()).count(),
-        error_trials: rs
-            .iter()
-            .filter(|r| r.result.error_message.is_some())
-            .count(),
-        success_rate: if n == 0 {
-            0.0
-        } else {
-            successes as f64 / n as f64
-        },
-        success_ci95: wilson_interval(successes, n),
-        mae: per_axis(|m| m.mean),
-        abs_error_std: per_axis(|m| m.std),
-        peak_fz_success_n: peaks(true),
-        peak_fz_failure_n: peaks(false),
-        mean_phase_s: [
-            mean_of(|r| r.result.times.search_s),
-            mean_of(|r| r.result.times.observe_s),
-            mean_of(|r| r.result.times.retract_s),
-            mean_of(|r| r.result.times.align_s),
-            mean_of(|r| r.result.times.insert_s),
-        ],
-        cell,
+        if res.fault.is_none() {
+            let peaks = if res.success {
+                &mut self.peak_fz_success
+            } else {
+                &mut self.peak_fz_failure
+            };
+            peaks.add(pass, res.peak_fz_n);
+        }
+        if pass == Pass::Mean {
+            self.trials += 1;
+            self.successes += usize::from(res.success);
+            self.sim_faults += usize::from(res.fault.is_some());
+            self.error_trials += usize::from(res.error_message.is_some());
+            let t = &res.times;
+            let phases = [t.search_s, t.observe_s, t.retract_s, t.align_s, t.insert_s];
+            (0..5).for_each(|p| self.phase_sums_s[p] += phases[p]);
+        }
+    }
+
+    fn summary(&self, cell: Condition) -> CellSummary {
+        let n = self.trials;
+        let per_axis = |f: fn(&MeanStd) -> f64| -> Option<[f64; 6]> {
+            let cols: Vec<MeanStd> = self.abs_errors.iter().filter_map(Moments::finish).collect();
+            (cols.len() == 6).then(|| std::array::from_fn(|a| f(&cols[a])))
+        };
+        let per_trial = |v: f64| if n == 0 { 0.0 } else { v / n as f64 };
+        CellSummary {
+            trials: n,
+            successes: self.successes,
+            sim_faults: self.sim_faults,
+            error_trials: self.error_trials,
+            success_rate: per_trial(self.successes as f64),
+            success_ci95: wilson_interval(self.successes, n),
+            mae: per_axis(|m| m.mean),
+            abs_error_std: per_axis(|m| m.std),
+            peak_fz_success_n: self.peak_fz_success.finish(),
+            peak_fz_failure_n: self.peak_fz_failure.finish(),
+            mean_phase_s: self.phase_sums_s.map(per_trial),
+            cell,
+        }
     }
 }
 

@@ -15,7 +15,8 @@
 //! insertion translational 300-5000 N/m (x, y; z 2000 N/m kept), rotational 10-300 N m/rad,
 //! damping 0.3-1.0. Stiffnesses are drawn log-uniformly.
 
-use crate::campaign::run::{Prepared, RunOptions, TrialRecord, all_trials, prepare, run_trials};
+use crate::campaign::records::TrialRecord;
+use crate::campaign::run::{Prepared, RunOptions, all_trials, prepare, run_trials};
 use crate::campaign::scenario::Scenario;
 use crate::error::{Error, Result};
 use rand::SeedableRng;

@@ -3,6 +3,7 @@
 use super::progress::Bars;
 use clap::Args;
 use pegtwin::campaign::check::{Baseline, compare, findings_table};
+use pegtwin::campaign::records::{TrialsFile, index_records};
 use pegtwin::campaign::run::{self as campaign, CampaignOptions, RunOptions, Shard};
 use pegtwin::campaign::scenario::Scenario;
 use pegtwin::campaign::tune::{TuneOptions, tune};
@@ -122,11 +123,11 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
     };
     let outcome =
         pool(args.threads)?.install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
-    let summary = report::write_all(&args.out, &scenario, &outcome.records)?;
+    let summary = report::write_all(&args.out, &scenario, &outcome.trials)?;
     print!("{}", summary::summary_table(&summary));
     println!(
         "{} trials ({} run now) in {:.1} s; results in {}",
-        outcome.records.len(),
+        outcome.count,
         outcome.ran,
         started.elapsed().as_secs_f64(),
         args.out.join("report.html").display()
@@ -135,12 +136,12 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
 }
 
 pub fn merge_command(args: MergeArgs) -> Result<i32> {
-    let (scenario, records) = campaign::merge(&args.dirs, &args.out)?;
-    let summary = report::write_all(&args.out, &scenario, &records)?;
+    let (scenario, trials, count) = campaign::merge(&args.dirs, &args.out)?;
+    let summary = report::write_all(&args.out, &scenario, &trials)?;
     print!("{}", summary::summary_table(&summary));
     println!(
         "{} trials from {} shards; results in {}",
-        records.len(),
+        count,
         args.dirs.len(),
         args.out.display()
     );
@@ -159,18 +160,17 @@ fn finished_summary(dir: &Path) -> Result<summary::Summary> {
         ));
     }
     let path = dir.join(campaign::TRIALS_FILE);
-    let records = campaign::read_records(&path, false)?;
+    let held = index_records(&path, false)?.len();
     let expected = campaign::all_trials(&c.scenario).len();
-    if records.len() != expected {
+    if held != expected {
         return Err(Error::file(
             &path,
             format!(
-                "holds {} of {expected} trials: the campaign is not finished (--resume it)",
-                records.len()
+                "holds {held} of {expected} trials: the campaign is not finished (--resume it)"
             ),
         ));
     }
-    Ok(summary::summarise(&c.scenario, &records))
+    summary::summarise(&c.scenario, &TrialsFile { path })
 }
 
 pub fn check_command(args: CheckArgs) -> Result<i32> {

@@ -504,11 +504,13 @@ fn correspondences(
         })
         .collect();
     state.misses = results.iter().filter(|r| r.2).count();
+    let (cs, fresh): (Vec<Correspondence>, Vec<Option<NeighbourCache>>) =
+        results.into_iter().map(|(c, fresh, _)| (c, fresh)).unzip();
     if renew {
         state.epoch = scaled;
-        state.neighbours = results.iter().map(|r| r.1.clone()).collect();
+        state.neighbours = fresh;
     }
-    results.into_iter().map(|r| r.0).collect()
+    cs
 }
 
 /// Line 10: the symmetric point-to-plane misalignment, scaled coordinates.

@@ -1,0 +1,46 @@
+//! Figures as PNG and SVG (plotters), shared by the campaign report and `manifold plot`.
+//!
+//! Text is drawn with the DejaVu Sans font shipped in `assets/fonts` (no system font lookup), so
+//! the figures look the same on every machine.
+
+use crate::error::{Error, Result};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+
+const FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+            .map_err(|_| ())
+            .expect("the shipped font parses");
+    });
+}
+
+/// What a drawing function returns: plotters' errors as text.
+pub type DrawResult = std::result::Result<(), String>;
+
+/// A plotters error as text.
+pub fn err<E: std::fmt::Debug>(e: E) -> String {
+    format!("{e:?}")
+}
+
+/// Renders one figure of `size` pixels to `dir/{name}.png` and `dir/{name}.svg` (creating `dir`).
+pub fn render(
+    dir: &Path,
+    name: &str,
+    size: (u32, u32),
+    draw_png: impl Fn(DrawingArea<BitMapBackend, Shift>) -> DrawResult,
+    draw_svg: impl Fn(DrawingArea<SVGBackend, Shift>) -> DrawResult,
+) -> Result<()> {
+    register_font();
+    std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, format!("cannot create: {e}")))?;
+    let png = dir.join(format!("{name}.png"));
+    let svg = dir.join(format!("{name}.svg"));
+    let fail = |path: &Path, e: String| Error::file(path, format!("cannot draw: {e}"));
+    draw_png(BitMapBackend::new(&png, size).into_drawing_area()).map_err(|e| fail(&png, e))?;
+    draw_svg(SVGBackend::new(&svg, size).into_drawing_area()).map_err(|e| fail(&svg, e))?;
+    Ok(())
+}
