@@ -377,3 +377,29 @@ fn implausible_values_are_refused_not_panicked_on() {
         assert!(stderr(&o).contains(expected), "{}", stderr(&o));
     }
 }
+
+#[test]
+fn plot_draws_a_manifold_file_and_a_csv_and_refuses_a_bad_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, _) = synth(dir.path());
+    let csv = dir.path().join("poses.csv");
+    let o = pegtwin(&["manifold", "export", s(&m), "--csv", s(&csv)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("figures");
+    for (input, name) in [(&m, "cross"), (&csv, "poses")] {
+        let o = pegtwin(&["manifold", "plot", s(input), "--out", s(&out)]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let png = std::fs::read(out.join(format!("{name}.png"))).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+        let svg = std::fs::read_to_string(out.join(format!("{name}.svg"))).unwrap();
+        // 20 000 poses drawn through a stride of 4: 5 000 per panel, six panels.
+        assert!(svg.contains("5000 of 20000 poses shown"), "title missing");
+        assert_eq!(svg.matches("<circle").count(), 6 * 5000);
+    }
+    let bad = dir.path().join("bad.manifold");
+    std::fs::write(&bad, b"not a manifold").unwrap();
+    let o = pegtwin(&["manifold", "plot", s(&bad), "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bad.manifold"), "{}", stderr(&o));
+    assert!(!out.join("bad.png").exists());
+}

@@ -6,6 +6,7 @@ use clap::{Args, Subcommand, ValueEnum};
 use pegtwin::error::{Error, Result};
 use pegtwin::method::manifold::cache::ManifoldSpec;
 use pegtwin::method::manifold::file::{self, read_csv};
+use pegtwin::method::manifold::plot;
 use pegtwin::method::manifold::synthetic::SyntheticPair;
 use pegtwin::method::manifold::{DEFAULT_NORMAL_K, MAX_POINTS, Manifold, ManifoldMeta, UNITS};
 use pegtwin::method::register::{
@@ -28,6 +29,15 @@ pub enum ManifoldAction {
         /// Output CSV.
         #[arg(long)]
         csv: PathBuf,
+    },
+    /// Draw a manifold (file or CSV of hole_T_peg poses) as the paper does: the x-y-z scatter
+    /// coloured by roll, pitch and yaw, and the x-y, x-z, y-z projections. Writes
+    /// DIR/NAME.png and DIR/NAME.svg (NAME: the file's stem).
+    Plot {
+        file: PathBuf,
+        /// Output folder (created if needed).
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Make a manifold file from a CSV of contact poses hole_T_peg (m, rad); normals are computed
     /// unless the CSV has the normal columns.
@@ -197,6 +207,31 @@ fn csv_meta(path: &Path, metric: PoseMetric, k: usize) -> ManifoldMeta {
     }
 }
 
+/// `manifold plot`: a manifold file, or a CSV of poses, drawn into `out`.
+fn plot_manifold(path: &Path, out: &Path) -> Result<()> {
+    let is_csv = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    let (points, label) = if is_csv {
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+        (read_csv(path)?.poses, stem.unwrap_or_default())
+    } else {
+        let m = file::load(path)?;
+        let label = plot::label(&m.meta);
+        (m.points, label)
+    };
+    let name = path
+        .file_stem()
+        .map_or("manifold".into(), |s| s.to_string_lossy().into_owned());
+    plot::plot(&points, &label, out, &name)?;
+    println!(
+        "wrote {} and {}",
+        out.join(format!("{name}.png")).display(),
+        out.join(format!("{name}.svg")).display()
+    );
+    Ok(())
+}
+
 pub fn manifold_command(action: ManifoldAction) -> Result<i32> {
     match action {
         ManifoldAction::Info { file: path, json } => {
@@ -232,6 +267,7 @@ pub fn manifold_command(action: ManifoldAction) -> Result<i32> {
             file::save(&m, &out)?;
             println!("wrote {} ({} poses)", out.display(), m.len());
         }
+        ManifoldAction::Plot { file: path, out } => plot_manifold(&path, &out)?,
         ManifoldAction::Synth(args) => synth(args)?,
         ManifoldAction::Build(args) => build(args)?,
     }
