@@ -4,6 +4,7 @@
 //! the figures look the same on every machine.
 
 use crate::error::{Error, Result};
+use image::ImageEncoder;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -43,4 +44,20 @@ pub fn render(
     draw_png(BitMapBackend::new(&png, size).into_drawing_area()).map_err(|e| fail(&png, e))?;
     draw_svg(SVGBackend::new(&svg, size).into_drawing_area()).map_err(|e| fail(&svg, e))?;
     Ok(())
+}
+
+/// Renders one figure of `size` pixels as a PNG file in memory (for a page to inline).
+pub fn png_bytes(
+    size: (u32, u32),
+    draw: impl Fn(DrawingArea<BitMapBackend, Shift>) -> DrawResult,
+) -> Result<Vec<u8>> {
+    register_font();
+    let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    draw(BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area())
+        .map_err(|e| Error::Input(format!("cannot draw a figure: {e}")))?;
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(&rgb, size.0, size.1, image::ColorType::Rgb8)
+        .map_err(|e| Error::Input(format!("cannot encode a figure as PNG: {e}")))?;
+    Ok(png)
 }

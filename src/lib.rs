@@ -2,7 +2,7 @@
 //! pose estimation (Negi et al.). The README is the user's manual; `docs/architecture.md` says
 //! which file owns what.
 //!
-//! Three layers, each using only the ones above it in this list:
+//! Four layers, each using only the ones above it in this list:
 //!
 //! - [`twin`]: what exists physically. Parts and meshes ([`twin::geometry`]), the robot model and
 //!   its URDF loader ([`twin::robot`]), the rapier world with exact convex contacts
@@ -20,8 +20,12 @@
 //!   - one trial as the sequence of those stage calls: [`method::trial`] (V-A), with its settings
 //!     in [`method::config`], its random streams in [`method::seeds`], and the cell's ports in
 //!     [`method::session`].
+//! - [`replay`]: see what happened. A trial recorded while it runs and played back in 3-D in one
+//!   self-contained HTML page ([`replay::page`], with the viewer of `viewer/`), its meshes
+//!   ([`replay::scene`]) and the registration drawn over the manifold ([`replay::registration`]).
 //! - [`campaign`]: many trials. Scenario files ([`campaign::scenario`]), parallel, sharded,
 //!   resumable runs ([`campaign::run`]) whose records stream from disk ([`campaign::records`]),
+//!   with the replays of their failures ([`campaign::replays`]),
 //!   statistics and tables ([`campaign::summary`]), figures
 //!   and report.html ([`campaign::report`]), gain tuning ([`campaign::tune`]) and the regression
 //!   gate ([`campaign::check`]).
@@ -35,4 +39,5 @@ pub mod figures;
 pub mod files;
 pub mod method;
 pub mod pose;
+pub mod replay;
 pub mod twin;

@@ -47,6 +47,31 @@ fn campaign(scenario: &str, out: &Path, cache: &Path, extra: &[&str]) -> std::pr
     pegtwin(&args)
 }
 
+/// The replay pages of a results folder, sorted.
+fn replays_of(dir: &Path) -> Vec<String> {
+    let Ok(entries) = std::fs::read_dir(dir.join("replays")) else {
+        return Vec::new();
+    };
+    let mut names: Vec<String> = entries
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// `--replays failures`: a page for every trial that did not succeed and for trials 0 and 1 of
+/// every cell, none for the others, each named after its record's outcome.
+fn check_replays(trials_jsonl: &str, pages: &[String]) {
+    for line in trials_jsonl.lines() {
+        let r: serde_json::Value = serde_json::from_str(line).unwrap();
+        let (cell, trial) = (r["cell"].as_u64().unwrap(), r["trial"].as_u64().unwrap());
+        let outcome = r["outcome"].as_str().unwrap();
+        let name = format!("c{cell:03}-t{trial:04}-{outcome}.html");
+        let wanted = outcome != "error" && (outcome != "success" || trial < 2);
+        assert_eq!(pages.contains(&name), wanted, "{name} in {pages:?}");
+    }
+}
+
 fn trials(dir: &Path) -> String {
     std::fs::read_to_string(dir.join("trials.jsonl")).unwrap()
 }
@@ -77,11 +102,25 @@ fn campaign_is_identical_across_threads_shards_and_a_kill() {
         table.contains("manifold") && table.contains("direct"),
         "{table}"
     );
+    let pages = replays_of(&one);
+    check_replays(&reference, &pages);
+    let report = std::fs::read_to_string(one.join("report.html")).unwrap();
+    for page in &pages {
+        assert!(report.contains(&format!("replays/{page}")), "{page} linked");
+    }
+    assert!(one.join("figures/manifold-cross-0.5mm.png").is_file());
+    assert!(report.contains("figures/manifold-cross-0.5mm.png"));
 
     let two = t.join("two");
-    let o = campaign(&scenario, &two, &cache, &["--threads", "2"]);
+    let o = campaign(
+        &scenario,
+        &two,
+        &cache,
+        &["--threads", "2", "--replays", "none"],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(trials(&two), reference, "1 vs 2 threads");
+    assert_eq!(trials(&two), reference, "1 vs 2 threads, replays or none");
+    assert!(replays_of(&two).is_empty(), "--replays none");
 
     for i in 0..2 {
         let shard = format!("{i}/2");
@@ -103,6 +142,7 @@ fn campaign_is_identical_across_threads_shards_and_a_kill() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(trials(&merged), reference, "merged shards");
+    assert_eq!(replays_of(&merged), pages, "the shards' replays merged");
     let o = pegtwin(&[
         "merge",
         t.join("shard0").to_str().unwrap(),

@@ -268,6 +268,7 @@ mod tests {
         let whole = CampaignOptions {
             shard: Shard::WHOLE,
             resume: false,
+            replays: crate::campaign::replays::Replays::None,
         };
         let out = campaign_with(&s, &dir.join("out"), whole, &run, &inject).unwrap();
         let records = read_records(&out.trials.path, false).unwrap();

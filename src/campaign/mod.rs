@@ -3,6 +3,7 @@
 
 pub mod check;
 pub mod records;
+pub mod replays;
 pub mod report;
 pub mod run;
 pub mod scenario;

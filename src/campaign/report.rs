@@ -11,12 +11,15 @@ use super::summary::{
     AXES, MeanStd, Moments, Pass, Summary, SummaryTally, abs_errors, two_passes, wilson_interval,
 };
 use crate::campaign::records::{RecordSource, TrialRecord};
+use crate::campaign::replays::{self, ReplayLink};
 use crate::campaign::scenario::Scenario;
 use crate::campaign::tune::Evaluation;
 use crate::error::Result;
 use crate::figures::{self, DrawResult, err};
 use crate::method::config::Method;
+use crate::method::manifold::{cache, plot};
 use crate::method::trial::FZ_PROFILE_DT_S;
+use crate::twin::geometry;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
@@ -541,7 +544,58 @@ fn write_report(
         |a| draw_fz(a, figures),
         |a| draw_fz(a, figures),
     )?;
-    crate::files::write_atomically(&dir.join("report.html"), html(scenario, summary).as_bytes())
+    let replays = replays::list(dir)?;
+    let manifolds = manifold_figures(dir)?;
+    let page = html(scenario, summary, &replays, &manifolds);
+    crate::files::write_atomically(&dir.join("report.html"), page.as_bytes())
+}
+
+/// The prefix of the figures of the reference manifolds.
+const MANIFOLD_FIGURE: &str = "manifold-";
+
+/// Draws the reference manifold of every pair the manifold method ran on, as `manifold plot`
+/// does, into `dir/figures/manifold-{geometry}-{clearance}mm.png` and `.svg`, from the cache
+/// folder `cache_dir` (a manifold that is not there is not drawn; nothing is built).
+pub fn write_manifolds(dir: &Path, scenario: &Scenario, cache_dir: &Path) -> Result<()> {
+    let params = scenario.cell_params();
+    let mut drawn = Vec::new();
+    for cell in scenario.cells() {
+        let key = (cell.geometry.clone(), cell.clearance_mm.to_bits());
+        if cell.method != Method::Manifold || drawn.contains(&key) {
+            continue;
+        }
+        drawn.push(key);
+        let builtin = geometry::builtin_by_name(&cell.geometry)?;
+        let pair = geometry::build_builtin(builtin, cell.clearance_mm * 1e-3)?;
+        if let Some(m) = cache::cached(&pair, &scenario.manifold, &params, cache_dir)? {
+            let name = format!("{MANIFOLD_FIGURE}{}-{}mm", cell.geometry, cell.clearance_mm);
+            plot::plot(
+                &m.points,
+                &plot::label(&m.meta),
+                &dir.join("figures"),
+                &name,
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// The manifold figures in `dir/figures` (names without extension, sorted).
+fn manifold_figures(dir: &Path) -> Result<Vec<String>> {
+    let folder = dir.join("figures");
+    let Ok(entries) = std::fs::read_dir(&folder) else {
+        return Ok(Vec::new());
+    };
+    let mut names: Vec<String> = entries
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let stem = name.strip_suffix(".png")?;
+            stem.starts_with(MANIFOLD_FIGURE).then(|| stem.to_string())
+        })
+        .collect();
+    names.sort();
+    Ok(names)
 }
 
 fn escape(s: &str) -> String {
@@ -550,14 +604,20 @@ fn escape(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-fn html(scenario: &Scenario, summary: &Summary) -> String {
+fn html(
+    scenario: &Scenario,
+    summary: &Summary,
+    replay_links: &[ReplayLink],
+    manifolds: &[String],
+) -> String {
     let mut rows = String::new();
-    for c in summary.cells.iter().chain(&summary.pooled) {
+    let indexed = summary.cells.iter().enumerate().map(|(i, c)| (Some(i), c));
+    for (index, c) in indexed.chain(summary.pooled.iter().map(|c| (None, c))) {
         let mae = |a: usize| c.mae.map_or(String::new(), |m| format!("{:.2}", m[a]));
         let fz =
             |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std));
         rows += &format!(
-            "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td><td>{}</td></tr>\n",
             escape(&c.cell.geometry),
             c.cell.clearance_mm,
             c.cell.method,
@@ -571,6 +631,7 @@ fn html(scenario: &Scenario, summary: &Summary) -> String {
                 .collect::<String>(),
             fz(c.peak_fz_success_n),
             fz(c.peak_fz_failure_n),
+            index.map_or(String::new(), |i| replays::cell_link(replay_links, i)),
         );
     }
     let axes: String = AXES.iter().map(|a| format!("<th>MAE {a}</th>")).collect();
@@ -580,7 +641,7 @@ fn html(scenario: &Scenario, summary: &Summary) -> String {
         )
     };
     format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th></tr>\n{rows}</table>\n{f4}{f5}{f6}</body></html>\n",
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th><th>replays</th></tr>\n{rows}</table>\n{f4}{f5}{f6}{mf}{rp}</body></html>\n",
         name = escape(&scenario.name),
         fp = summary.fingerprint,
         n = scenario.trials,
@@ -599,5 +660,16 @@ fn html(scenario: &Scenario, summary: &Summary) -> String {
             "fig6_fz",
             "|Fz| profiles during insertion, success and failure, method vs direct (paper Fig. 6)"
         ),
+        mf = manifolds
+            .iter()
+            .map(|name| figure(
+                name,
+                &format!(
+                    "The reference contact manifold, {} (paper IV-B)",
+                    &name[MANIFOLD_FIGURE.len()..]
+                )
+            ))
+            .collect::<String>(),
+        rp = replays::section(replay_links, &scenario.cells()),
     )
 }

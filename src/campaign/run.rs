@@ -17,12 +17,14 @@ use crate::campaign::records::{
     TrialRecord, TrialSpec, TrialsFile, check_complete, check_entries_belong, index_records,
     write_sorted,
 };
+use crate::campaign::replays::{self, ReplayWriter, Replays};
 use crate::campaign::scenario::{Condition, Scenario};
 use crate::error::{Error, Result};
 use crate::method::config::Method;
 use crate::method::manifold::Manifold;
 use crate::method::manifold::cache::{self, BuildProgress};
 use crate::method::seeds;
+use crate::method::session::Recorder;
 use crate::method::trial::{TrialResult, errored_trial, run_trial};
 use crate::twin::geometry::{self, PartPair};
 use crate::twin::robot::RobotModel;
@@ -142,6 +144,14 @@ fn pair_key(cell: &Condition) -> (String, u64) {
     (cell.geometry.clone(), cell.clearance_mm.to_bits())
 }
 
+impl Prepared {
+    /// The pair of `cell` and its reference manifold (when its method registers).
+    pub fn inputs(&self, cell: &Condition) -> (&PartPair, Option<&Manifold>) {
+        let key = pair_key(cell);
+        (&self.pairs[&key], self.manifolds.get(&key))
+    }
+}
+
 /// Builds the pairs and loads (or builds and caches) the manifolds of `trials`.
 pub fn prepare(
     scenario: &Scenario,
@@ -183,7 +193,8 @@ pub fn prepare(
 }
 
 /// Runs one trial of a campaign (the real one is [`run_one`]; a test may inject another).
-pub(crate) type RunOne = dyn Fn(&Scenario, &Prepared, &TrialSpec) -> Result<TrialResult> + Sync;
+pub(crate) type RunOne<'a> =
+    dyn Fn(&Scenario, &Prepared, &TrialSpec) -> Result<TrialResult> + Sync + 'a;
 
 /// Runs `trials` in parallel on the current rayon pool and returns their records in the order of
 /// `trials` (for `tune`, which keeps them; a campaign streams them instead, see
@@ -206,7 +217,7 @@ fn stream_trials_with(
     scenario: &Scenario,
     prepared: &Prepared,
     trials: &[TrialSpec],
-    run: &RunOne,
+    run: &RunOne<'_>,
     on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
 ) -> Result<()> {
     trials.par_iter().try_for_each(|spec| {
@@ -234,7 +245,7 @@ fn guarded_trial(
     scenario: &Scenario,
     prepared: &Prepared,
     spec: &TrialSpec,
-    run: &RunOne,
+    run: &RunOne<'_>,
 ) -> TrialRecord {
     let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         run(scenario, prepared, spec)
@@ -256,16 +267,26 @@ fn guarded_trial(
 
 /// The trial `spec` of the campaign.
 pub fn run_one(scenario: &Scenario, prepared: &Prepared, spec: &TrialSpec) -> Result<TrialResult> {
+    run_one_recorded(scenario, prepared, spec, None)
+}
+
+/// The trial `spec` of the campaign, seen by `recorder` (a replay).
+pub fn run_one_recorded(
+    scenario: &Scenario,
+    prepared: &Prepared,
+    spec: &TrialSpec,
+    recorder: Option<&mut dyn Recorder>,
+) -> Result<TrialResult> {
     let cell = &scenario.cells()[spec.cell];
-    let key = pair_key(cell);
+    let (pair, manifold) = prepared.inputs(cell);
     run_trial(
-        &prepared.pairs[&key],
+        pair,
         &prepared.robot,
         &scenario.cell_params(),
         &scenario.trial_config(cell),
-        prepared.manifolds.get(&key),
+        manifold,
         spec.seed,
-        None,
+        recorder,
     )
 }
 
@@ -300,6 +321,8 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 pub struct CampaignOptions {
     pub shard: Shard,
     pub resume: bool,
+    /// Which trials get a 3-D replay in `replays/` (they do not change the records).
+    pub replays: Replays,
 }
 
 /// The outcome of `campaign`.
@@ -319,7 +342,14 @@ pub fn campaign(
     options: CampaignOptions,
     run: &RunOptions,
 ) -> Result<CampaignRun> {
-    campaign_with(scenario, out, options, run, &run_one)
+    let replays = ReplayWriter::new(out, options.replays);
+    let outcome = campaign_with(scenario, out, options, run, &|s, p, spec| {
+        let (pair, manifold) = p.inputs(&s.cells()[spec.cell]);
+        replays.record(spec, (pair, &p.robot, manifold), |recorder| {
+            run_one_recorded(s, p, spec, recorder)
+        })
+    });
+    replays.finish(outcome)
 }
 
 pub(crate) fn campaign_with(
@@ -327,7 +357,7 @@ pub(crate) fn campaign_with(
     out: &Path,
     options: CampaignOptions,
     run: &RunOptions,
-    run_one: &RunOne,
+    run_one: &RunOne<'_>,
 ) -> Result<CampaignRun> {
     let described = CampaignFile {
         fingerprint: scenario.fingerprint(),
@@ -463,7 +493,7 @@ pub fn read_campaign(dir: &Path) -> Result<CampaignFile> {
 
 /// Joins the shards in `dirs` into one campaign folder `out`: same scenario, every shard of the
 /// split once, every trial once. Returns the scenario and the merged `trials.jsonl`, in (cell,
-/// trial) order, with its number of trials.
+/// trial) order, with its number of trials. The shards' replays are copied too.
 pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, TrialsFile, usize)> {
     let first = dirs
         .first()
@@ -519,6 +549,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, TrialsFile, usiz
     }
     let path = out.join(TRIALS_FILE);
     write_sorted(&path, &parts)?;
+    replays::merge(dirs, out)?;
     Ok((described.scenario, TrialsFile { path }, count))
 }
 

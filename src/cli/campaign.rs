@@ -1,5 +1,6 @@
 //! `pegtwin campaign`, `merge`, `check` and `tune`.
 
+use super::choices::ReplaysArg;
 use super::progress::Bars;
 use clap::Args;
 use pegtwin::campaign::check::{Baseline, compare, findings_table};
@@ -32,6 +33,9 @@ pub struct CampaignArgs {
     /// Folder of cached manifolds (default: $XDG_CACHE_HOME/pegtwin or ~/.cache/pegtwin).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
+    /// Which trials get a 3-D replay page in OUT/replays, linked from report.html.
+    #[arg(long, value_enum, default_value = "failures")]
+    pub replays: ReplaysArg,
 }
 
 #[derive(Args)]
@@ -42,6 +46,9 @@ pub struct MergeArgs {
     /// Merged results folder (new or empty).
     #[arg(long)]
     pub out: PathBuf,
+    /// Folder of cached manifolds, for the report's manifold figures (default: $XDG_CACHE_HOME/pegtwin or ~/.cache/pegtwin).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -120,9 +127,11 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
     let options = CampaignOptions {
         shard,
         resume: args.resume,
+        replays: args.replays.into(),
     };
     let outcome =
         pool(args.threads)?.install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
+    report::write_manifolds(&args.out, &scenario, &run.cache_dir)?;
     let summary = report::write_all(&args.out, &scenario, &outcome.trials)?;
     print!("{}", summary::summary_table(&summary));
     println!(
@@ -137,6 +146,11 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
 
 pub fn merge_command(args: MergeArgs) -> Result<i32> {
     let (scenario, trials, count) = campaign::merge(&args.dirs, &args.out)?;
+    let cache_dir = match &args.cache_dir {
+        Some(d) => d.clone(),
+        None => cache::default_dir()?,
+    };
+    report::write_manifolds(&args.out, &scenario, &cache_dir)?;
     let summary = report::write_all(&args.out, &scenario, &trials)?;
     print!("{}", summary::summary_table(&summary));
     println!(

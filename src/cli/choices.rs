@@ -2,6 +2,7 @@
 //! itself does not depend on clap.
 
 use clap::ValueEnum;
+use pegtwin::campaign::replays::Replays;
 use pegtwin::method::config::{Method, Start};
 use pegtwin::method::register::Solver;
 use pegtwin::twin::geometry::mesh::MeshUnits;
@@ -72,6 +73,27 @@ impl From<UnitsArg> for MeshUnits {
         match u {
             UnitsArg::Mm => MeshUnits::Mm,
             UnitsArg::M => MeshUnits::M,
+        }
+    }
+}
+
+/// Which trials of a campaign get a 3-D replay.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ReplaysArg {
+    /// Every failed or faulted trial, and the first two trials of every cell.
+    Failures,
+    /// Every trial.
+    All,
+    /// None.
+    None,
+}
+
+impl From<ReplaysArg> for Replays {
+    fn from(r: ReplaysArg) -> Self {
+        match r {
+            ReplaysArg::Failures => Replays::Failures,
+            ReplaysArg::All => Replays::All,
+            ReplaysArg::None => Replays::None,
         }
     }
 }

@@ -8,8 +8,9 @@ use pegtwin::method::config::{MAX_OFFSET, TrialConfig};
 use pegtwin::method::manifold::Manifold;
 use pegtwin::method::manifold::cache::{self, ManifoldSpec};
 use pegtwin::method::manifold::file;
-use pegtwin::method::session::trace_csv;
+use pegtwin::method::session::{Recorder, trace_csv};
 use pegtwin::method::trial::{TrialResult, run_trial};
+use pegtwin::replay::Replay;
 use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::geometry::{self, PartPair};
 use std::path::PathBuf;
@@ -57,6 +58,9 @@ pub struct TrialArgs {
     /// Write the time series (time, phase, TCP pose, estimated and true wrench, contact) as CSV.
     #[arg(long)]
     pub trace: Option<PathBuf>,
+    /// Write a 3-D replay of the trial: one self-contained HTML page (open it in a browser).
+    #[arg(long)]
+    pub replay: Option<PathBuf>,
 }
 
 pub fn trial_command(args: TrialArgs) -> Result<i32> {
@@ -83,7 +87,7 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
         ..Default::default()
     };
     config.ensure_valid()?;
-    if let Some(path) = &args.trace {
+    for path in args.trace.iter().chain(&args.replay) {
         pegtwin::files::ensure_writable(path)?;
     }
     let robot = pegtwin::twin::robot::urdf::iiwa14()?;
@@ -92,7 +96,8 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
         MethodArg::Manifold => Some(reference_manifold(&args, &pair, &robot, &params)?),
         MethodArg::Direct => None,
     };
-    let mut trace = args.trace.as_ref().map(|_| Vec::new());
+    let mut recorders = (Vec::new(), Replay::new(&pair, &robot));
+    let recording = args.trace.is_some() || args.replay.is_some();
     let result = run_trial(
         &pair,
         &robot,
@@ -100,10 +105,14 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
         &config,
         manifold.as_ref(),
         args.seed,
-        trace.as_mut(),
+        recording.then_some(&mut recorders as &mut dyn Recorder),
     )?;
-    if let (Some(path), Some(rows)) = (&args.trace, &trace) {
-        pegtwin::files::write_atomically(path, &trace_csv(rows))?;
+    let (rows, replay) = recorders;
+    if let Some(path) = &args.trace {
+        pegtwin::files::write_atomically(path, &trace_csv(&rows))?;
+    }
+    if let Some(path) = &args.replay {
+        replay.write_html(path, &result, manifold.as_ref())?;
     }
     if args.json {
         println!(

@@ -79,6 +79,30 @@ pub fn trace_csv(rows: &[TraceRow]) -> Vec<u8> {
 /// command anything.
 pub trait Recorder {
     fn record(&mut self, cell: &Cell, phase: Phase);
+
+    /// The registration's input and output (IV-D), for a recorder that draws them: the contact
+    /// poses used (`base_T_tcp`), the hole frame believed before registering, and the estimated
+    /// one (none for the direct baseline or a registration that did not run).
+    fn registration(
+        &mut self,
+        _observations: &[Pose6],
+        _believed: &Iso,
+        _estimate: Option<&Pose6>,
+    ) {
+    }
+}
+
+/// Two recorders fed together (a `--trace` and a `--replay` of the same trial).
+impl<A: Recorder, B: Recorder> Recorder for (A, B) {
+    fn record(&mut self, cell: &Cell, phase: Phase) {
+        self.0.record(cell, phase);
+        self.1.record(cell, phase);
+    }
+
+    fn registration(&mut self, observations: &[Pose6], believed: &Iso, estimate: Option<&Pose6>) {
+        self.0.registration(observations, believed, estimate);
+        self.1.registration(observations, believed, estimate);
+    }
 }
 
 /// The `--trace` time series: one row per step.
@@ -163,6 +187,18 @@ impl<'a> Session<'a> {
             recorder.record(self.cell, self.phase);
         }
         true
+    }
+
+    /// Hands the registration's input and output to the recorder (see [`Recorder::registration`]).
+    pub fn record_registration(
+        &mut self,
+        observations: &[Pose6],
+        believed: &Iso,
+        estimate: Option<&Pose6>,
+    ) {
+        if let Some(recorder) = self.recorder.as_deref_mut() {
+            recorder.registration(observations, believed, estimate);
+        }
     }
 
     /// Moves the target from `from` to `to` (linear in position, slerp in rotation) over `seconds`.

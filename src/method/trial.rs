@@ -19,7 +19,7 @@ use crate::method::observe::{Observation, observe};
 use crate::method::register::{RegistrationConfig, register};
 use crate::method::search::{search, start_pose};
 use crate::method::seeds::TrialSeeds;
-use crate::method::session::{Phase, Recorder, Session, TraceRow};
+use crate::method::session::{Phase, Recorder, Session};
 use crate::pose::{Iso, Pose6};
 use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
 use crate::twin::geometry::PartPair;
@@ -32,7 +32,8 @@ use std::time::Instant;
 /// Sampling interval of the insertion force profile kept in a result, s.
 pub const FZ_PROFILE_DT_S: f64 = 0.05;
 
-/// Runs a trial. `manifold` is needed by the manifold method.
+/// Runs a trial. `manifold` is needed by the manifold method; `recorder` sees every step (the
+/// `--trace` time series, a `--replay`).
 pub fn run_trial(
     pair: &PartPair,
     robot: &RobotModel,
@@ -40,13 +41,14 @@ pub fn run_trial(
     config: &TrialConfig,
     manifold: Option<&Manifold>,
     seed: u64,
-    trace: Option<&mut Vec<TraceRow>>,
+    recorder: Option<&mut dyn Recorder>,
 ) -> Result<TrialResult> {
     config.ensure_valid()?;
     let started = Instant::now();
     let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
     let mut cell = setup.cell(pair, robot, params, config)?;
-    let recorder = trace.map(|t| t as &mut dyn Recorder);
+    // A reborrow for the session's shorter life (the cell is younger than the recorder).
+    let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
     let mut session = Session::new(&mut cell, recorder, Phase::Search);
     let Some(believed) = setup.approach(&mut session, config, pair.clearance_m) else {
         let fault = session.fault().cloned();
@@ -68,6 +70,7 @@ pub fn run_trial(
         (stages.estimate, stages.register_wall_s) =
             estimate_hole(manifold, &observations, &believed, config, &setup.seeds)?;
         let estimate = stages.estimate.as_ref();
+        session.record_registration(&observations, &believed, estimate);
         stages.insertion = insert(
             &mut session,
             &believed,

@@ -188,6 +188,13 @@ impl Truth<'_> {
         self.cell.arm.q(&self.cell.world)
     }
 
+    /// True poses of the base link (the identity) and of each moving link, base frame: the
+    /// model's forward kinematics at the true joint positions.
+    pub fn link_poses(&self) -> Vec<Iso> {
+        let frames = self.cell.model.kinematics(&self.q()).frames;
+        std::iter::once(Iso::identity()).chain(frames).collect()
+    }
+
     /// True TCP pose, base frame.
     pub fn tcp_pose(&self) -> Iso {
         self.cell.true_tcp_pose()

@@ -131,6 +131,35 @@ pub fn resolve(
     load_or_build(pair, robot, &recipe, &dir, progress)
 }
 
+/// The reference manifold of `pair` made as `spec` says with the cell `params`, if the cache
+/// folder `dir` holds it (nothing is built).
+pub fn cached(
+    pair: &PartPair,
+    spec: &ManifoldSpec,
+    params: &CellParams,
+    dir: &Path,
+) -> Result<Option<Manifold>> {
+    let sampler = spec.sampler();
+    let recipe = Recipe {
+        sampler: &sampler,
+        points: spec.points,
+        seed: spec.seed,
+        params,
+    };
+    load_cached(pair, &recipe, dir)
+}
+
+/// The cached manifold of `pair` made by `recipe`, if there is one.
+fn load_cached(pair: &PartPair, recipe: &Recipe, dir: &Path) -> Result<Option<Manifold>> {
+    let path = path(dir, pair, recipe);
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let m = file::load(&path)?;
+    m.check_made_for(pair, &path)?;
+    Ok(Some(m))
+}
+
 /// The cached manifold of `pair`, built and cached first when missing.
 fn load_or_build(
     pair: &PartPair,
@@ -139,12 +168,10 @@ fn load_or_build(
     dir: &Path,
     progress: &dyn BuildProgress,
 ) -> Result<Manifold> {
-    let path = path(dir, pair, recipe);
-    if path.is_file() {
-        let m = file::load(&path)?;
-        m.check_made_for(pair, &path)?;
+    if let Some(m) = load_cached(pair, recipe, dir)? {
         return Ok(m);
     }
+    let path = path(dir, pair, recipe);
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::file(dir, format!("cannot create the cache folder: {e}")))?;
     progress.build_started(pair, &path, recipe.sampler.episodes);
