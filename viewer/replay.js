@@ -201,7 +201,7 @@
   // ---------- camera ----------
   const focus = trueHole ? [trueHole[12], trueHole[13], trueHole[14]] : [0.5, 0, 0.1];
   const VIEWS = {
-    close: { target: add(focus, [0, 0, 0.01]), dist: 0.22, yaw: -0.9, pitch: 0.3 },
+    close: { target: add(focus, [0, 0, -0.008]), dist: 0.2, yaw: -0.9, pitch: 0.14 },
     arm: { target: [focus[0] * 0.5, focus[1] * 0.5, 0.45], dist: 1.7, yaw: -0.9, pitch: 0.3 },
   };
   const cam = { target: focus.slice(), dist: 0.16, yaw: -0.9, pitch: 0.35 };
