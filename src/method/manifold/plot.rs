@@ -7,7 +7,8 @@
 //! frame (z out of the hole, so insertion depth is negative z). Colours run along viridis from
 //! each angle's 1st percentile (dark purple) to its 99th (yellow); the panel titles give the
 //! ranges. A manifold larger than [`MAX_DRAWN_POSES`] is drawn through an even stride over its
-//! points, and the title says how many are shown.
+//! points, and the title says how many are shown; the few poses outside the 0.1-99.9 % span of x,
+//! y or z (stray contacts at the mouth) are left out, and the title says how many.
 
 use super::ManifoldMeta;
 use crate::error::Result;
@@ -31,12 +32,15 @@ type Drawn = [f64; 6];
 /// Writes the figure of the contact poses `points` (`hole_T_peg`, m and rad) to `dir/{name}.png`
 /// and `dir/{name}.svg`; `label` names them in the title (see [`label`]).
 pub fn plot(points: &[Pose6], label: &str, dir: &Path, name: &str) -> Result<()> {
-    let drawn = drawn_poses(points);
-    let sample = if drawn.len() < points.len() {
+    let (drawn, outlying) = without_outliers(drawn_poses(points));
+    let mut sample = if drawn.len() + outlying < points.len() {
         format!("{} of {} poses shown", drawn.len(), points.len())
     } else {
         format!("{} poses", points.len())
     };
+    if outlying > 0 {
+        sample += &format!(", {outlying} beyond the 0.1-99.9 % span of x, y or z left out");
+    }
     let title = format!("Contact manifold: {label} ({sample})");
     figures::render(
         dir,
@@ -75,27 +79,42 @@ fn drawn_poses(points: &[Pose6]) -> Vec<Drawn> {
         .collect()
 }
 
-/// The range of column `axis` over `poses`, widened where it is flat so colours and axes stay
-/// defined.
+/// The poses whose x, y and z lie within their 0.1-99.9 % span, and how many did not: a few
+/// stray contacts at the mouth would otherwise stretch the axes and squeeze the manifold into a
+/// corner.
+fn without_outliers(poses: Vec<Drawn>) -> (Vec<Drawn>, usize) {
+    let spans: Vec<Range<f64>> = (0..3)
+        .map(|a| percentile_span(&poses, a, 0.001, 0.999))
+        .collect();
+    let total = poses.len();
+    let kept: Vec<Drawn> = poses
+        .into_iter()
+        .filter(|p| (0..3).all(|a| spans[a].start <= p[a] && p[a] <= spans[a].end))
+        .collect();
+    let outlying = total - kept.len();
+    (kept, outlying)
+}
+
+/// The axis range of column `axis` over `poses`: its extent, padded, and widened where it is
+/// flat so that axes stay defined.
 fn range(poses: &[Drawn], axis: usize) -> Range<f64> {
-    let (lo, hi) = poses
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p[axis]), hi.max(p[axis]))
-        });
-    if !(lo.is_finite() && hi.is_finite()) {
-        return -1.0..1.0;
-    }
-    let pad = ((hi - lo) * 0.02).max(1e-3);
-    (lo - pad)..(hi + pad)
+    let span = percentile_span(poses, axis, 0.0, 1.0);
+    let pad = ((span.end - span.start) * 0.02).max(1e-3);
+    (span.start - pad)..(span.end + pad)
 }
 
 /// The range the colours of `angle` span: its 1st to 99th percentile over `poses`, so that a few
 /// outlying poses do not wash the rest into one colour (values beyond take the end colours).
 fn colour_span(poses: &[Drawn], angle: usize) -> Range<f64> {
+    percentile_span(poses, angle, 0.01, 0.99)
+}
+
+/// The `lo` to `hi` quantiles of column `axis` over `poses` (finite values), widened to 1 where
+/// they meet.
+fn percentile_span(poses: &[Drawn], axis: usize, lo: f64, hi: f64) -> Range<f64> {
     let mut v: Vec<f64> = poses
         .iter()
-        .map(|p| p[angle])
+        .map(|p| p[axis])
         .filter(|a| a.is_finite())
         .collect();
     if v.is_empty() {
@@ -103,7 +122,7 @@ fn colour_span(poses: &[Drawn], angle: usize) -> Range<f64> {
     }
     v.sort_unstable_by(f64::total_cmp);
     let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-    let (lo, hi) = (at(0.01), at(0.99));
+    let (lo, hi) = (at(lo), at(hi));
     if hi - lo < 1e-6 {
         (lo - 0.5)..(hi + 0.5)
     } else {
@@ -233,6 +252,17 @@ mod tests {
         assert!(drawn.len() <= MAX_DRAWN_POSES, "{}", drawn.len());
         assert_eq!(drawn.len(), 12_001usize.div_ceil(3));
         assert!((drawn[1][0] - 3e-3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_stray_pose_does_not_stretch_the_axes() {
+        let mut poses: Vec<Drawn> = (0..5000)
+            .map(|i| [(i % 50) as f64 * 0.01, (i / 50) as f64 * 0.01, -1.0, 0.0, 0.0, 0.0])
+            .collect();
+        poses.push([5.0, -5.0, 0.0, 0.0, 0.0, 0.0]);
+        let (kept, outlying) = without_outliers(poses);
+        assert_eq!(outlying, 1);
+        assert!(range(&kept, 0).end < 0.6, "{:?}", range(&kept, 0));
     }
 
     #[test]
