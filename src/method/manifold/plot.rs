@@ -257,7 +257,16 @@ mod tests {
     #[test]
     fn a_stray_pose_does_not_stretch_the_axes() {
         let mut poses: Vec<Drawn> = (0..5000)
-            .map(|i| [(i % 50) as f64 * 0.01, (i / 50) as f64 * 0.01, -1.0, 0.0, 0.0, 0.0])
+            .map(|i| {
+                [
+                    (i % 50) as f64 * 0.01,
+                    (i / 50) as f64 * 0.01,
+                    -1.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                ]
+            })
             .collect();
         poses.push([5.0, -5.0, 0.0, 0.0, 0.0, 0.0]);
         let (kept, outlying) = without_outliers(poses);
