@@ -1,9 +1,13 @@
 //! Physics speed of the robot cell: the iiwa 14 multibody under 1 kHz Cartesian impedance, the
-//! `cross` peg 5 mm inside its hole at 0.1 mm clearance, probing the walls with a small circle in
-//! x, y and a rocking in roll and pitch (as the observation phase does). Throughput is physics
-//! steps (1 ms each) per second on one core.
+//! `cross` peg (and the `gear`, the built-in with the most convex pieces) 5 mm inside its hole at
+//! 0.1 mm clearance, probing the walls with a small circle in x, y and a rocking in roll and pitch
+//! (as the observation phase does). Throughput is physics steps (1 ms each) per second on one
+//! core.
 
-use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{
+    BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
+};
 use pegtwin::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use pegtwin::twin::control::ImpedanceGains;
 use pegtwin::twin::geometry::{build_builtin, builtin_by_name};
@@ -25,7 +29,17 @@ fn probing_target(start: &Iso, t: f64) -> Iso {
 }
 
 fn bench(c: &mut Criterion) {
-    let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.1e-3).unwrap();
+    let mut group = c.benchmark_group("arm_cell");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(STEPS as u64));
+    for geometry in ["cross", "gear"] {
+        bench_geometry(&mut group, geometry);
+    }
+    group.finish();
+}
+
+fn bench_geometry(group: &mut BenchmarkGroup<'_, WallTime>, geometry: &str) {
+    let pair = build_builtin(builtin_by_name(geometry).unwrap(), 0.1e-3).unwrap();
     let params = CellParams::default();
     let hole = nominal_hole_pose(&pair, &params);
     let start = tcp_in_hole(&hole, 0.005);
@@ -48,10 +62,7 @@ fn bench(c: &mut Criterion) {
         }
         cell
     };
-    let mut group = c.benchmark_group("arm_cell");
-    group.sample_size(10);
-    group.throughput(Throughput::Elements(STEPS as u64));
-    group.bench_function("cross_0.1mm_probing_steps", |b| {
+    group.bench_function(format!("{geometry}_0.1mm_probing_steps"), |b| {
         b.iter_batched(
             make,
             |mut cell| {
@@ -65,7 +76,6 @@ fn bench(c: &mut Criterion) {
             BatchSize::LargeInput,
         )
     });
-    group.finish();
 }
 
 criterion_group!(benches, bench);
