@@ -85,11 +85,6 @@ impl Replay {
         }
     }
 
-    /// The frames recorded so far.
-    pub fn frames(&self) -> &[Frame] {
-        &self.frames
-    }
-
     /// Writes the replay of the trial that gave `result` to `path` (one HTML file); `manifold`,
     /// the reference manifold it registered against, adds the registration panel.
     pub fn write_html(

@@ -31,7 +31,12 @@ const AXIS_NAMES: [&str; 6] = [
 /// The panel as a PNG image.
 pub fn png(manifold: &Manifold, reg: &RegistrationRecord) -> Result<Vec<u8>> {
     let stride = manifold.points.len().div_ceil(MAX_MANIFOLD_POSES).max(1);
-    let reference: Vec<[f64; 6]> = manifold.points.iter().step_by(stride).map(mm_deg).collect();
+    let reference: Vec<[f64; 6]> = manifold
+        .points
+        .iter()
+        .step_by(stride)
+        .map(Pose6::to_mm_deg)
+        .collect();
     let before = in_frame(&reg.observations, &reg.believed);
     let after = reg
         .estimate
@@ -45,20 +50,8 @@ fn in_frame(observations: &[Pose6], base_t_hole: &Iso) -> Vec<[f64; 6]> {
     let inv = base_t_hole.inverse();
     observations
         .iter()
-        .map(|o| mm_deg(&Pose6::from_iso(&(inv * o.to_iso()))))
+        .map(|o| Pose6::from_iso(&(inv * o.to_iso())).to_mm_deg())
         .collect()
-}
-
-fn mm_deg(p: &Pose6) -> [f64; 6] {
-    let [x, y, z, roll, pitch, yaw] = p.0;
-    [
-        x * 1e3,
-        y * 1e3,
-        z * 1e3,
-        roll.to_degrees(),
-        pitch.to_degrees(),
-        yaw.to_degrees(),
-    ]
 }
 
 /// The range of column `axis` over every set drawn, padded.

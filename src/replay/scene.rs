@@ -32,11 +32,6 @@ impl Mesh {
             self.indices.extend(t.iter().map(|i| base + i));
         }
     }
-
-    /// Number of triangles.
-    pub fn triangle_count(&self) -> usize {
-        self.indices.len() / 3
-    }
 }
 
 /// The static part of a replay: what each body looks like.

@@ -121,14 +121,9 @@ pub fn resolve(
         Some(d) => d.to_path_buf(),
         None => default_dir()?,
     };
-    let sampler = spec.sampler();
-    let recipe = Recipe {
-        sampler: &sampler,
-        points: spec.points,
-        seed: spec.seed,
-        params,
-    };
-    load_or_build(pair, robot, &recipe, &dir, progress)
+    with_recipe(spec, params, |recipe| {
+        load_or_build(pair, robot, recipe, &dir, progress)
+    })
 }
 
 /// The reference manifold of `pair` made as `spec` says with the cell `params`, if the cache
@@ -139,14 +134,18 @@ pub fn cached(
     params: &CellParams,
     dir: &Path,
 ) -> Result<Option<Manifold>> {
+    with_recipe(spec, params, |recipe| load_cached(pair, recipe, dir))
+}
+
+/// Calls `f` with the recipe `spec` asks for with the cell `params`.
+fn with_recipe<T>(spec: &ManifoldSpec, params: &CellParams, f: impl FnOnce(&Recipe) -> T) -> T {
     let sampler = spec.sampler();
-    let recipe = Recipe {
+    f(&Recipe {
         sampler: &sampler,
         points: spec.points,
         seed: spec.seed,
         params,
-    };
-    load_cached(pair, &recipe, dir)
+    })
 }
 
 /// The cached manifold of `pair` made by `recipe`, if there is one.

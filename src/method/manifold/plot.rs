@@ -65,17 +65,7 @@ fn drawn_poses(points: &[Pose6]) -> Vec<Drawn> {
     points
         .iter()
         .step_by(stride)
-        .map(|p| {
-            let [x, y, z, roll, pitch, yaw] = p.0;
-            [
-                x * 1e3,
-                y * 1e3,
-                z * 1e3,
-                roll.to_degrees(),
-                pitch.to_degrees(),
-                yaw.to_degrees(),
-            ]
-        })
+        .map(Pose6::to_mm_deg)
         .collect()
 }
 
