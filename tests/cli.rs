@@ -73,3 +73,34 @@ fn a_garbage_mesh_exits_2_naming_the_file() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("peg.stl"), "{}", stderr(&o));
 }
+
+#[test]
+fn bench_measures_every_piece_and_refuses_zero_steps() {
+    let o = pegtwin(&["bench", "--arm-steps", "20", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let names: Vec<&str> = rows
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "arm_cross",
+            "arm_gear",
+            "sampling_episode",
+            "trial_direct",
+            "registration"
+        ]
+    );
+    for r in rows.as_array().unwrap() {
+        let v = r["value"].as_f64().unwrap();
+        assert!(v.is_finite() && v > 0.0, "{r}");
+    }
+    assert!(rows[0]["real_time_factor"].as_f64().unwrap() > 0.0);
+    let o = pegtwin(&["bench", "--arm-steps", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--arm-steps 0"), "{}", stderr(&o));
+}

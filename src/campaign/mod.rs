@@ -1,6 +1,7 @@
 //! Campaigns: many trials of the method from a scenario file, their statistics, the paper's
 //! figures, gain tuning and the regression gate.
 
+pub mod bench;
 pub mod check;
 pub mod records;
 pub mod replays;

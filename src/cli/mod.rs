@@ -8,6 +8,7 @@ use pegtwin::twin::geometry::mesh::load_pair;
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
 use std::path::PathBuf;
 
+mod bench;
 mod campaign;
 mod choices;
 mod progress;
@@ -15,6 +16,7 @@ mod registration;
 mod robot;
 mod trial;
 mod validate;
+pub use bench::BenchArgs;
 pub use campaign::{CampaignArgs, CheckArgs, MergeArgs, TuneArgs};
 pub use registration::{ManifoldAction, RegisterArgs};
 pub use robot::RobotAction;
@@ -65,6 +67,9 @@ pub enum Command {
     Check(CheckArgs),
     /// Search the observation and insertion gains for the best success rate and lowest force.
     Tune(TuneArgs),
+    /// Measure the speed of a campaign's pieces on this machine (arm physics, a sampling episode,
+    /// a trial, a registration), with the ratio to real time.
+    Bench(BenchArgs),
 }
 
 #[derive(Subcommand)]
@@ -171,6 +176,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Merge(args) => campaign::merge_command(args),
         Command::Check(args) => campaign::check_command(args),
         Command::Tune(args) => campaign::tune_command(args),
+        Command::Bench(args) => bench::bench_command(args),
     }
 }
 

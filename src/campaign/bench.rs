@@ -1,0 +1,229 @@
+//! `pegtwin bench`: the speed of the pieces a campaign is made of, measured on the user's own
+//! machine in one run, with the ratio to real time where the piece simulates time.
+//!
+//! - the arm cell (the iiwa 14 under 1 kHz Cartesian impedance, the peg 5 mm in its hole at
+//!   0.1 mm, probing the walls as the observation does) with the cross and with the gear: physics
+//!   steps per second on one core, the scenes of `cargo bench --bench arm`;
+//! - one 20 s sampling episode of the manifold build (cross at 0.5 mm), one core;
+//! - one trial of the direct baseline (cross at 0.5 mm, 10 s observation), one core;
+//! - one registration (paper IV-D) of 1 000 observations against a 100 000-pose analytic cross
+//!   manifold, 16 restarts, on the current thread pool (as in a campaign).
+//!
+//! Wall-clock figures: run it on an idle machine. Instruction counts, which do not depend on the
+//! load, are in `docs/performance.md`.
+
+use crate::error::Result;
+use crate::method::config::{Method, TrialConfig};
+use crate::method::manifold::build::{SamplerConfig, run_episode};
+use crate::method::manifold::synthetic::SyntheticPair;
+use crate::method::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
+use crate::method::register::{RegistrationConfig, register};
+use crate::method::seeds;
+use crate::method::trial::run_trial;
+use crate::pose::{Iso, Pose6, PoseMetric};
+use crate::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
+use crate::twin::control::ImpedanceGains;
+use crate::twin::geometry::{build_builtin, builtin_by_name};
+use crate::twin::robot::urdf::iiwa14;
+use serde::Serialize;
+use std::time::Instant;
+
+/// How much of each piece to run.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchOptions {
+    /// Physics steps measured on the cross's arm scene (the gear's runs a tenth of them).
+    pub arm_steps: usize,
+}
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        BenchOptions { arm_steps: 2000 }
+    }
+}
+
+/// One measured figure.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRow {
+    pub name: String,
+    pub what: String,
+    /// The figure, in `unit`.
+    pub value: f64,
+    pub unit: String,
+    /// Simulated time over wall time (above 1: faster than the real robot), where time is
+    /// simulated.
+    pub real_time_factor: Option<f64>,
+}
+
+/// Steps the arm scenes settle before they are measured.
+const SETTLE_STEPS: usize = 200;
+
+/// The probing target of the arm scenes at time `t_s`: a 0.3 mm circle in x, y, 1 mm below the
+/// start, rocking 0.5 deg in roll and pitch (as the observation phase probes).
+pub fn probing_target(start: &Iso, t_s: f64) -> Iso {
+    let w = std::f64::consts::TAU;
+    start
+        * Iso::translation(0.3e-3 * (w * t_s).cos(), 0.3e-3 * (w * t_s).sin(), -1e-3)
+        * Iso::rotation(nalgebra::Vector3::new(
+            0.5f64.to_radians() * (w * 1.3 * t_s).sin(),
+            0.5f64.to_radians() * (w * 0.7 * t_s).sin(),
+            0.0,
+        ))
+}
+
+/// The arm scene of `geometry` at 0.1 mm: the cell with the peg 5 mm in its hole under 500 N/m,
+/// settled for [`SETTLE_STEPS`] steps of probing, and the start pose the probing is about.
+pub fn arm_scene(geometry: &str) -> Result<(Cell, Iso)> {
+    let pair = build_builtin(builtin_by_name(geometry)?, 0.1e-3)?;
+    let params = CellParams::default();
+    let hole = nominal_hole_pose(&pair, &params);
+    let start = tcp_in_hole(&hole, 0.005);
+    let gains = ImpedanceGains::uniform(500.0, 20.0, 0.7);
+    let mut cell = Cell::new(&pair, iiwa14()?, &params, Some(hole), &start, gains, 1)?;
+    probe(&mut cell, &start, SETTLE_STEPS);
+    Ok((cell, start))
+}
+
+/// `steps` physics steps of probing.
+pub fn probe(cell: &mut Cell, start: &Iso, steps: usize) {
+    for _ in 0..steps {
+        let t = cell.time_s();
+        cell.command_pose(probing_target(start, t));
+        cell.step();
+    }
+}
+
+/// Runs every piece and returns the table.
+pub fn run(options: &BenchOptions) -> Result<Vec<BenchRow>> {
+    let gear_steps = (options.arm_steps / 10).max(1);
+    Ok(vec![
+        arm_row("cross", options.arm_steps)?,
+        arm_row("gear", gear_steps)?,
+        episode_row()?,
+        trial_row()?,
+        registration_row()?,
+    ])
+}
+
+fn arm_row(geometry: &str, steps: usize) -> Result<BenchRow> {
+    let (mut cell, start) = arm_scene(geometry)?;
+    let dt = cell.dt_s();
+    let t0 = Instant::now();
+    probe(&mut cell, &start, steps);
+    let rate = steps as f64 / t0.elapsed().as_secs_f64();
+    Ok(BenchRow {
+        name: format!("arm_{geometry}"),
+        what: format!("arm cell, iiwa 14 + {geometry} at 0.1 mm, probing, {steps} steps, one core"),
+        value: rate,
+        unit: "steps/s".into(),
+        real_time_factor: Some(rate * dt),
+    })
+}
+
+fn episode_row() -> Result<BenchRow> {
+    let pair = build_builtin(builtin_by_name("cross")?, 0.5e-3)?;
+    let sampler = SamplerConfig::default();
+    let t0 = Instant::now();
+    run_episode(
+        &pair,
+        &iiwa14()?,
+        &CellParams::default(),
+        &sampler,
+        seeds::episode(1, 0),
+    )?;
+    let wall = t0.elapsed().as_secs_f64();
+    Ok(BenchRow {
+        name: "sampling_episode".into(),
+        what: format!(
+            "one manifold sampling episode, cross at 0.5 mm, {} s simulated, one core",
+            sampler.episode_s
+        ),
+        value: wall,
+        unit: "s".into(),
+        real_time_factor: Some(sampler.episode_s / wall),
+    })
+}
+
+fn trial_row() -> Result<BenchRow> {
+    let pair = build_builtin(builtin_by_name("cross")?, 0.5e-3)?;
+    let config = TrialConfig {
+        method: Method::Direct,
+        ..TrialConfig::default()
+    };
+    let t0 = Instant::now();
+    let r = run_trial(
+        &pair,
+        &iiwa14()?,
+        &CellParams::default(),
+        &config,
+        None,
+        3,
+        None,
+    )?;
+    let wall = t0.elapsed().as_secs_f64();
+    let t = &r.times;
+    let simulated = t.search_s + t.observe_s + t.retract_s + t.align_s + t.insert_s;
+    Ok(BenchRow {
+        name: "trial_direct".into(),
+        what: format!(
+            "one trial, direct baseline, cross at 0.5 mm, {} s observation ({simulated:.1} s simulated), one core",
+            config.t_obs_s
+        ),
+        value: wall,
+        unit: "s".into(),
+        real_time_factor: Some(simulated / wall),
+    })
+}
+
+fn registration_row() -> Result<BenchRow> {
+    let pair = SyntheticPair::cross(0.03, 0.01, 0.5e-3);
+    let points = pair.sample_contacts(100_000, [0.001, 0.015], 1);
+    let truth = Pose6([0.6, 0.05, 0.2, 0.0, 0.0, 0.3]);
+    let noise = (5e-6, 0.005f64.to_radians());
+    let observations = pair.observe(&truth, 1000, [0.002, 0.008], noise, 2);
+    let init = truth.compose(&Pose6([0.004, -0.003, 0.005, 0.07, -0.05, 0.08]));
+    let meta = ManifoldMeta {
+        geometry: pair.name.clone(),
+        clearance_m: Some(pair.clearance_m),
+        units: UNITS.into(),
+        metric: PoseMetric::default(),
+        normal_k: DEFAULT_NORMAL_K,
+        source: "pegtwin bench".into(),
+        seed: Some(1),
+    };
+    let manifold = Manifold::from_points(points, meta)?;
+    let config = RegistrationConfig::default();
+    let t0 = Instant::now();
+    register(&manifold, &observations, &init, &config)?;
+    Ok(BenchRow {
+        name: "registration".into(),
+        what: format!(
+            "registration, 1000 observations, 100 000-pose manifold, {} restarts (the trials' default), {} threads",
+            config.restarts,
+            rayon::current_num_threads()
+        ),
+        value: t0.elapsed().as_secs_f64(),
+        unit: "s".into(),
+        real_time_factor: None,
+    })
+}
+
+/// The table as text.
+pub fn table(rows: &[BenchRow]) -> String {
+    let mut out = format!(
+        "{:<18} {:>12} {:>10}  what\n",
+        "piece", "figure", "x realtime"
+    );
+    for r in rows {
+        let factor = r
+            .real_time_factor
+            .map_or("-".to_string(), |f| format!("{f:.2}"));
+        out += &format!(
+            "{:<18} {:>16} {:>10}  {}\n",
+            r.name,
+            format!("{:.2} {}", r.value, r.unit),
+            factor,
+            r.what
+        );
+    }
+    out
+}
