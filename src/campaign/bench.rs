@@ -23,7 +23,7 @@ use crate::method::trial::run_trial;
 use crate::pose::{Iso, Pose6, PoseMetric};
 use crate::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use crate::twin::control::ImpedanceGains;
-use crate::twin::geometry::{build_builtin, builtin_by_name};
+use crate::twin::geometry::{PartPair, build_builtin, builtin_by_name};
 use crate::twin::robot::urdf::iiwa14;
 use serde::Serialize;
 use std::time::Instant;
@@ -73,12 +73,15 @@ pub fn probing_target(start: &Iso, t_s: f64) -> Iso {
 /// The arm scene of `geometry` at 0.1 mm: the cell with the peg 5 mm in its hole under 500 N/m,
 /// settled for [`SETTLE_STEPS`] steps of probing, and the start pose the probing is about.
 pub fn arm_scene(geometry: &str) -> Result<(Cell, Iso)> {
-    let pair = build_builtin(builtin_by_name(geometry)?, 0.1e-3)?;
+    arm_scene_of(&build_builtin(builtin_by_name(geometry)?, 0.1e-3)?)
+}
+
+fn arm_scene_of(pair: &PartPair) -> Result<(Cell, Iso)> {
     let params = CellParams::default();
-    let hole = nominal_hole_pose(&pair, &params);
+    let hole = nominal_hole_pose(pair, &params);
     let start = tcp_in_hole(&hole, 0.005);
     let gains = ImpedanceGains::uniform(500.0, 20.0, 0.7);
-    let mut cell = Cell::new(&pair, iiwa14()?, &params, Some(hole), &start, gains, 1)?;
+    let mut cell = Cell::new(pair, iiwa14()?, &params, Some(hole), &start, gains, 1)?;
     probe(&mut cell, &start, SETTLE_STEPS);
     Ok((cell, start))
 }
@@ -90,6 +93,17 @@ pub fn probe(cell: &mut Cell, start: &Iso, steps: usize) {
         cell.command_pose(probing_target(start, t));
         cell.step();
     }
+}
+
+/// The mean number of contact points the solver handles per step over `steps` more steps of
+/// probing (counted apart from the timed steps).
+fn contacts_per_step(cell: &mut Cell, start: &Iso, steps: usize) -> f64 {
+    let mut contacts = 0;
+    for _ in 0..steps {
+        probe(cell, start, 1);
+        contacts += cell.truth().solver_contacts();
+    }
+    contacts as f64 / steps as f64
 }
 
 /// Runs every piece and returns the table.
@@ -105,14 +119,20 @@ pub fn run(options: &BenchOptions) -> Result<Vec<BenchRow>> {
 }
 
 fn arm_row(geometry: &str, steps: usize) -> Result<BenchRow> {
-    let (mut cell, start) = arm_scene(geometry)?;
+    let pair = build_builtin(builtin_by_name(geometry)?, 0.1e-3)?;
+    let (mut cell, start) = arm_scene_of(&pair)?;
     let dt = cell.dt_s();
     let t0 = Instant::now();
     probe(&mut cell, &start, steps);
     let rate = steps as f64 / t0.elapsed().as_secs_f64();
+    let contacts = contacts_per_step(&mut cell, &start, steps.min(100));
     Ok(BenchRow {
         name: format!("arm_{geometry}"),
-        what: format!("arm cell, iiwa 14 + {geometry} at 0.1 mm, probing, {steps} steps, one core"),
+        what: format!(
+            "arm cell, iiwa 14 + {geometry} at 0.1 mm ({} + {} convex pieces, {contacts:.0} contact points), probing, {steps} steps, one core",
+            pair.peg.pieces.len(),
+            pair.hole.pieces.len(),
+        ),
         value: rate,
         unit: "steps/s".into(),
         real_time_factor: Some(rate * dt),

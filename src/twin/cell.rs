@@ -195,6 +195,11 @@ impl Truth<'_> {
         std::iter::once(Iso::identity()).chain(frames).collect()
     }
 
+    /// Contact points the solver handled on the peg in the last step.
+    pub fn solver_contacts(&self) -> usize {
+        crate::twin::physics::solver_contact_count(&self.cell.world, self.cell.peg)
+    }
+
     /// True TCP pose, base frame.
     pub fn tcp_pose(&self) -> Iso {
         self.cell.true_tcp_pose()

@@ -230,6 +230,18 @@ pub fn add_dynamic(
     (body, collider)
 }
 
+/// How many contact points the solver handled on `collider` in the last step (each is one or more
+/// constraint rows: the cost of a multibody contact grows with them).
+pub fn solver_contact_count(world: &PhysicsWorld, collider: ColliderHandle) -> usize {
+    world
+        .narrow_phase
+        .contact_pairs_with(collider)
+        .filter_map(|pair| pair.rigid())
+        .flat_map(|rigid| rigid.solver_manifolds())
+        .map(|m| m.data.solver_contacts.len())
+        .sum()
+}
+
 /// The contact wrench that all other colliders exert on `collider` during the last step, from the
 /// solver's normal and friction impulses divided by the step; the torque is about `about` (world).
 pub fn contact_wrench(
