@@ -1,6 +1,9 @@
 //! The replays of a campaign (`campaign --replays failures|all|none`): the 3-D replay page of
-//! every failed and faulted trial and of the first [`SAMPLED_TRIALS`] trials of every cell, in
-//! `replays/` of the results folder, linked from `report.html`.
+//! every failed and faulted trial among the first [`FAILURES_UP_TO_TRIAL`] of each cell (all of
+//! them in a campaign of the paper's size) and of the first [`SAMPLED_TRIALS`] trials of every
+//! cell, in `replays/` of the results folder, linked from `report.html`. A page is 0.3-0.9 MB
+//! (the meshes travel in every page, so that each opens alone): the bound keeps a 10 000-trial
+//! campaign whose trials mostly fail from writing gigabytes (`--replays all` writes every one).
 //!
 //! A replay is recorded while its trial runs and written when the trial ends, if the policy wants
 //! it; recording reads the cell and commands nothing, so the records are the same with any
@@ -24,12 +27,15 @@ use std::sync::Mutex;
 pub const REPLAYS_DIR: &str = "replays";
 /// Trials of every cell replayed whatever their outcome (the samples of success), from trial 0.
 pub const SAMPLED_TRIALS: usize = 2;
+/// `--replays failures` replays the failures among the trials of a cell numbered below this.
+pub const FAILURES_UP_TO_TRIAL: usize = 50;
 
 /// Which trials of a campaign get a replay.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Replays {
-    /// Every failed or faulted trial, and the first [`SAMPLED_TRIALS`] of each cell.
+    /// Every failed or faulted trial among the first [`FAILURES_UP_TO_TRIAL`] of each cell, and
+    /// the first [`SAMPLED_TRIALS`] of each cell.
     #[default]
     Failures,
     /// Every trial.
@@ -39,13 +45,24 @@ pub enum Replays {
 }
 
 impl Replays {
+    /// Whether trial number `trial` of a cell may get a replay (it is recorded only then).
+    pub fn may_want(self, trial: usize) -> bool {
+        match self {
+            Replays::None => false,
+            Replays::All => true,
+            Replays::Failures => trial < FAILURES_UP_TO_TRIAL.max(SAMPLED_TRIALS),
+        }
+    }
+
     /// Whether trial number `trial` of a cell, which ended as `result`, gets a replay. A trial that
     /// raised an error has none (it has no end to show).
     pub fn wants(self, trial: usize, result: &TrialResult) -> bool {
         match self {
             Replays::None => false,
             Replays::All => true,
-            Replays::Failures => !result.success || trial < SAMPLED_TRIALS,
+            Replays::Failures => {
+                trial < SAMPLED_TRIALS || !result.success && trial < FAILURES_UP_TO_TRIAL
+            }
         }
     }
 }
@@ -153,14 +170,15 @@ impl ReplayWriter {
     }
 
     /// Trial `spec` of a campaign on `pair` and `robot` (with `manifold` for the manifold
-    /// method), run by `run` with a recorder when the policy may want its replay.
+    /// method), run by `run` with a recorder when the policy may want its replay (a trial past
+    /// the ones it replays runs unrecorded).
     pub fn record(
         &self,
         spec: &TrialSpec,
         (pair, robot, manifold): (&PartPair, &RobotModel, Option<&Manifold>),
         run: impl FnOnce(Option<&mut dyn Recorder>) -> Result<TrialResult>,
     ) -> Result<TrialResult> {
-        if self.policy == Replays::None {
+        if !self.policy.may_want(spec.trial) {
             return run(None);
         }
         let mut replay = Replay::new(pair, robot);
@@ -209,6 +227,32 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::method::config::TrialConfig;
+    use crate::method::trial::errored_trial;
+    use crate::twin::cell::CellParams;
+    use crate::twin::geometry::{build_builtin, builtin_by_name};
+
+    #[test]
+    fn failures_replays_the_first_trials_and_the_early_failures() {
+        let pair = build_builtin(builtin_by_name("cross").unwrap(), 1e-3).unwrap();
+        let record = |success: bool| {
+            let mut r = errored_trial(
+                &pair,
+                &CellParams::default(),
+                &TrialConfig::default(),
+                1,
+                String::new(),
+            );
+            r.success = success;
+            r
+        };
+        let (ok, failed) = (record(true), record(false));
+        let p = Replays::Failures;
+        assert!(p.wants(0, &ok) && p.wants(1, &ok) && !p.wants(2, &ok));
+        assert!(p.wants(2, &failed) && p.wants(49, &failed) && !p.wants(50, &failed));
+        assert!(Replays::All.wants(5000, &ok) && !Replays::None.wants(0, &failed));
+        assert!(p.may_want(49) && !p.may_want(50) && !Replays::None.may_want(0));
+    }
 
     #[test]
     fn a_replay_name_reads_back() {

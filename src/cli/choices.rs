@@ -80,7 +80,8 @@ impl From<UnitsArg> for MeshUnits {
 /// Which trials of a campaign get a 3-D replay.
 #[derive(Clone, Copy, ValueEnum)]
 pub enum ReplaysArg {
-    /// Every failed or faulted trial, and the first two trials of every cell.
+    /// Every failed or faulted trial among the first 50 of each cell, and the first two trials of
+    /// every cell.
     Failures,
     /// Every trial.
     All,
