@@ -11,6 +11,9 @@ pub enum Error {
     /// A file could not be read or is not what was expected.
     #[error("{}: {msg}", path.display())]
     File { path: PathBuf, msg: String },
+    /// The user stopped a run (Ctrl-C in Python); what finished is kept.
+    #[error("{0}")]
+    Stopped(String),
 }
 
 impl Error {

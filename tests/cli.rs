@@ -76,7 +76,7 @@ fn a_garbage_mesh_exits_2_naming_the_file() {
 
 #[test]
 fn bench_measures_every_piece_and_refuses_zero_steps() {
-    let o = pegtwin(&["bench", "--arm-steps", "20", "--json"]);
+    let o = pegtwin(&["bench", "--arm-steps", "20", "--env-steps", "40", "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let rows: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let names: Vec<&str> = rows
@@ -92,6 +92,7 @@ fn bench_measures_every_piece_and_refuses_zero_steps() {
             "arm_gear",
             "sampling_episode",
             "trial_direct",
+            "env_random_policy",
             "registration"
         ]
     );

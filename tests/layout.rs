@@ -229,8 +229,14 @@ fn the_method_stages_cannot_read_the_truth() {
     for f in library_files() {
         let m = module_of(&f).join("::");
         // The trial sets the experiment up and scores it; the session records the trace; the
-        // arm validation judges the physics, it is no stage of the method.
-        let judges = ["method::trial", "method::session", "method::validate_arm"];
+        // arm validation judges the physics, it is no stage of the method; the environment
+        // scores a learned policy and reports the truth beside (never as) its observations.
+        let judges = [
+            "method::trial",
+            "method::session",
+            "method::validate_arm",
+            "method::env",
+        ];
         if !m.starts_with("method") || judges.contains(&m.as_str()) {
             continue;
         }

@@ -6,6 +6,8 @@
 //!   steps per second on one core, the scenes of `cargo bench --bench arm`;
 //! - one 20 s sampling episode of the manifold build (cross at 0.5 mm), one core;
 //! - one trial of the direct baseline (cross at 0.5 mm, 10 s observation), one core;
+//! - 1 000 steps of the Gymnasium environment's core (`method::env`, cross at 0.5 mm, 20 Hz
+//!   control over the 1 kHz physics) under a uniformly random policy, one core;
 //! - one registration (paper IV-D) of 1 000 observations against a 100 000-pose analytic cross
 //!   manifold, 16 restarts, on the current thread pool (as in a campaign).
 //!
@@ -14,6 +16,7 @@
 
 use crate::error::Result;
 use crate::method::config::{Method, TrialConfig};
+use crate::method::env::{EnvConfig, PegEnv};
 use crate::method::manifold::build::{SamplerConfig, run_episode};
 use crate::method::manifold::synthetic::SyntheticPair;
 use crate::method::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
@@ -33,11 +36,17 @@ use std::time::Instant;
 pub struct BenchOptions {
     /// Physics steps measured on the cross's arm scene (the gear's runs a tenth of them).
     pub arm_steps: usize,
+    /// Steps of the environment under a random policy.
+    pub env_steps: usize,
 }
 
 impl Default for BenchOptions {
+    /// 2 000 arm steps; 1 000 environment steps (the Python package's issue measures 1 000).
     fn default() -> Self {
-        BenchOptions { arm_steps: 2000 }
+        BenchOptions {
+            arm_steps: 2000,
+            env_steps: 1000,
+        }
     }
 }
 
@@ -114,6 +123,7 @@ pub fn run(options: &BenchOptions) -> Result<Vec<BenchRow>> {
         arm_row("gear", gear_steps)?,
         episode_row()?,
         trial_row()?,
+        env_row(options.env_steps)?,
         registration_row()?,
     ])
 }
@@ -191,6 +201,38 @@ fn trial_row() -> Result<BenchRow> {
         value: wall,
         unit: "s".into(),
         real_time_factor: Some(simulated / wall),
+    })
+}
+
+/// `steps` environment steps under a uniformly random policy (seeded), resetting when an
+/// episode ends: steps per second and the ratio to real time at the control rate.
+fn env_row(steps: usize) -> Result<BenchRow> {
+    use rand::{Rng, SeedableRng};
+    let pair = build_builtin(builtin_by_name("cross")?, 0.5e-3)?;
+    let config = EnvConfig::default();
+    let control_hz = config.control_hz;
+    let mut env = PegEnv::new(pair, iiwa14()?, config)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let t0 = Instant::now();
+    env.reset(0)?;
+    for _ in 0..steps {
+        let action: Vec<f64> = (0..env.config().action_len())
+            .map(|_| rng.random_range(-1.0..=1.0))
+            .collect();
+        let step = env.step(&action)?;
+        if step.terminated || step.truncated {
+            env.reset(rng.random())?;
+        }
+    }
+    let rate = steps as f64 / t0.elapsed().as_secs_f64();
+    Ok(BenchRow {
+        name: "env_random_policy".into(),
+        what: format!(
+            "{steps} environment steps, random policy, cross at 0.5 mm, {control_hz} Hz control over 1 kHz physics, one core"
+        ),
+        value: rate,
+        unit: "steps/s".into(),
+        real_time_factor: Some(rate / control_hz),
     })
 }
 

@@ -489,6 +489,18 @@ pub fn write_tune(dir: &Path, evals: &[Evaluation]) -> Result<()> {
     )
 }
 
+/// A finished campaign's whole report in `dir`: each pair's manifold figure (from the cache in
+/// `cache_dir`, never built), then the summary, the figures and report.html ([`write_all`]).
+pub fn write_campaign_report(
+    dir: &Path,
+    scenario: &Scenario,
+    source: &dyn RecordSource,
+    cache_dir: &Path,
+) -> Result<Summary> {
+    write_manifolds(dir, scenario, cache_dir)?;
+    write_all(dir, scenario, source)
+}
+
 /// Writes `summary.json`, `summary.csv` and the report (`report.html`, `figures/`) into `dir`,
 /// from two streaming passes over `source`.
 pub fn write_all(dir: &Path, scenario: &Scenario, source: &dyn RecordSource) -> Result<Summary> {

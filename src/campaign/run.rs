@@ -122,6 +122,11 @@ pub trait CampaignProgress: BuildProgress {
     fn trial_done(&self) {}
     /// The trials finished (or the run failed).
     fn trials_finished(&self) {}
+    /// True once the user wants the run stopped: no trial starts after it, the trials running
+    /// finish and are kept, and the campaign ends with [`Error::Stopped`] (`--resume` completes it).
+    fn should_stop(&self) -> bool {
+        false
+    }
 }
 
 /// No progress display.
@@ -131,6 +136,24 @@ impl CampaignProgress for () {}
 pub struct RunOptions<'a> {
     pub cache_dir: PathBuf,
     pub progress: &'a dyn CampaignProgress,
+}
+
+/// The most worker threads a run starts (a few hundred cores is the largest node in use).
+pub const MAX_THREADS: usize = 512;
+
+/// The pool a run's trials go to: `threads` workers (`None`: one per core), 1 to [`MAX_THREADS`].
+pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    if let Some(n) = threads
+        && !(1..=MAX_THREADS).contains(&n)
+    {
+        return Err(Error::Input(format!(
+            "--threads {n}: expected 1 to {MAX_THREADS}"
+        )));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+        .map_err(|e| Error::Input(format!("cannot start the worker threads: {e}")))
 }
 
 /// The pairs, the robot and the reference manifolds the given trials need.
@@ -218,9 +241,17 @@ fn stream_trials_with(
     prepared: &Prepared,
     trials: &[TrialSpec],
     run: &RunOne<'_>,
+    progress: &dyn CampaignProgress,
     on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
 ) -> Result<()> {
     trials.par_iter().try_for_each(|spec| {
+        if progress.should_stop() {
+            return Err(Error::Stopped(
+                "the campaign was stopped; the trials that finished are kept (resume it to \
+                 complete it)"
+                    .into(),
+            ));
+        }
         let record = guarded_trial(scenario, prepared, spec, run);
         release_freed_memory();
         on_done(&record)
@@ -399,7 +430,14 @@ pub(crate) fn campaign_with(
         run.progress.trial_done();
         Ok(())
     };
-    let ran = stream_trials_with(scenario, &prepared, &pending, run_one, &append);
+    let ran = stream_trials_with(
+        scenario,
+        &prepared,
+        &pending,
+        run_one,
+        run.progress,
+        &append,
+    );
     run.progress.trials_finished();
     ran?;
     let entries = index_records(&trials_path, false)?;

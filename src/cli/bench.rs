@@ -9,23 +9,32 @@ pub struct BenchArgs {
     /// Physics steps measured on the cross's arm scene (the gear's runs a tenth of them).
     #[arg(long, default_value_t = BenchOptions::default().arm_steps)]
     pub arm_steps: usize,
+    /// Steps of the Gymnasium environment's core under a random policy (20 Hz control).
+    #[arg(long, default_value_t = BenchOptions::default().env_steps)]
+    pub env_steps: usize,
     /// Print the table as JSON.
     #[arg(long)]
     pub json: bool,
 }
 
-/// The most steps one arm scene runs (about 10 minutes of the cross on a slow core).
+/// The most steps one arm scene (or the environment) runs (about 10 minutes of the cross on a
+/// slow core).
 const MAX_ARM_STEPS: usize = 5_000_000;
 
 pub fn bench_command(args: BenchArgs) -> Result<i32> {
-    if !(1..=MAX_ARM_STEPS).contains(&args.arm_steps) {
-        return Err(Error::Input(format!(
-            "--arm-steps {}: expected 1 to {MAX_ARM_STEPS}",
-            args.arm_steps
-        )));
+    for (flag, steps) in [
+        ("--arm-steps", args.arm_steps),
+        ("--env-steps", args.env_steps),
+    ] {
+        if !(1..=MAX_ARM_STEPS).contains(&steps) {
+            return Err(Error::Input(format!(
+                "{flag} {steps}: expected 1 to {MAX_ARM_STEPS}"
+            )));
+        }
     }
     let rows = run(&BenchOptions {
         arm_steps: args.arm_steps,
+        env_steps: args.env_steps,
     })?;
     if args.json {
         println!(

@@ -88,23 +88,6 @@ pub struct TuneArgs {
     pub cache_dir: Option<PathBuf>,
 }
 
-/// The most worker threads a run starts (a few hundred cores is the largest node in use).
-const MAX_THREADS: usize = 512;
-
-fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
-    if let Some(n) = threads
-        && !(1..=MAX_THREADS).contains(&n)
-    {
-        return Err(Error::Input(format!(
-            "--threads {n}: expected 1 to {MAX_THREADS}"
-        )));
-    }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.unwrap_or(0))
-        .build()
-        .map_err(|e| Error::Input(format!("cannot start the worker threads: {e}")))
-}
-
 fn run_options<'a>(cache_dir: &Option<PathBuf>, bars: &'a Bars) -> Result<RunOptions<'a>> {
     Ok(RunOptions {
         cache_dir: match cache_dir {
@@ -129,10 +112,10 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
         resume: args.resume,
         replays: args.replays.into(),
     };
-    let outcome =
-        pool(args.threads)?.install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
-    report::write_manifolds(&args.out, &scenario, &run.cache_dir)?;
-    let summary = report::write_all(&args.out, &scenario, &outcome.trials)?;
+    let outcome = campaign::worker_pool(args.threads)?
+        .install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
+    let summary =
+        report::write_campaign_report(&args.out, &scenario, &outcome.trials, &run.cache_dir)?;
     print!("{}", summary::summary_table(&summary));
     println!(
         "{} trials ({} run now) in {:.1} s; results in {}",
@@ -150,8 +133,7 @@ pub fn merge_command(args: MergeArgs) -> Result<i32> {
         Some(d) => d.clone(),
         None => cache::default_dir()?,
     };
-    report::write_manifolds(&args.out, &scenario, &cache_dir)?;
-    let summary = report::write_all(&args.out, &scenario, &trials)?;
+    let summary = report::write_campaign_report(&args.out, &scenario, &trials, &cache_dir)?;
     print!("{}", summary::summary_table(&summary));
     println!(
         "{} trials from {} shards; results in {}",
@@ -236,7 +218,7 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
         seed: args.seed,
     };
     let cells = scenario.cells().len();
-    let evals = pool(args.threads)?.install(|| {
+    let evals = campaign::worker_pool(args.threads)?.install(|| {
         tune(&scenario, &options, &run, &|rung, n, trials| {
             eprintln!("rung {rung}: {n} candidates x {} trials", trials * cells);
         })

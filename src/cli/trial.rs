@@ -3,16 +3,12 @@
 use super::choices::{MethodArg, StartArg};
 use super::progress::Bars;
 use clap::Args;
-use pegtwin::error::{Error, Result};
-use pegtwin::method::config::{MAX_OFFSET, TrialConfig};
-use pegtwin::method::manifold::Manifold;
-use pegtwin::method::manifold::cache::{self, ManifoldSpec};
-use pegtwin::method::manifold::file;
+use pegtwin::error::Result;
+use pegtwin::method::config::TrialConfig;
+use pegtwin::method::request::TrialRequest;
 use pegtwin::method::session::{Recorder, trace_csv};
-use pegtwin::method::trial::{TrialResult, run_trial};
+use pegtwin::method::trial::TrialResult;
 use pegtwin::replay::Replay;
-use pegtwin::twin::cell::CellParams;
-use pegtwin::twin::geometry::{self, PartPair};
 use std::path::PathBuf;
 
 /// The library's default offset half-ranges, mm and deg (the paper's U(-5, 5)).
@@ -63,56 +59,40 @@ pub struct TrialArgs {
     pub replay: Option<PathBuf>,
 }
 
-pub fn trial_command(args: TrialArgs) -> Result<i32> {
-    let clearance_m = args.clearance_mm * 1e-3;
-    geometry::check_clearance(clearance_m)?;
-    let pair = geometry::build_builtin(geometry::builtin_by_name(&args.geometry)?, clearance_m)?;
-    let (max_m, max_rad) = MAX_OFFSET;
-    for (flag, v, max) in [
-        ("--offset-mm", args.offset_mm, max_m * 1e3),
-        ("--offset-deg", args.offset_deg, max_rad.to_degrees()),
-    ] {
-        if !(v >= 0.0 && v <= max) {
-            return Err(Error::Input(format!(
-                "{flag} {v}: expected a half-range from 0 to {max:.0}"
-            )));
+impl TrialArgs {
+    /// The library's request for these arguments.
+    fn request(&self) -> TrialRequest {
+        TrialRequest {
+            geometry: self.geometry.clone(),
+            clearance_mm: self.clearance_mm,
+            t_obs_s: self.t_obs,
+            method: self.method.into(),
+            start: self.start.into(),
+            seed: self.seed,
+            offset_mm: self.offset_mm,
+            offset_deg: self.offset_deg,
+            manifold: self.manifold.clone(),
+            cache_dir: self.cache_dir.clone(),
         }
     }
-    let (m, a) = (args.offset_mm * 1e-3, args.offset_deg.to_radians());
-    let config = TrialConfig {
-        method: args.method.into(),
-        start: args.start.into(),
-        t_obs_s: args.t_obs,
-        offset_range: [m, m, m, a, a, a],
-        ..Default::default()
-    };
-    config.ensure_valid()?;
+}
+
+pub fn trial_command(args: TrialArgs) -> Result<i32> {
+    let request = args.request();
+    let checked = request.check()?;
     for path in args.trace.iter().chain(&args.replay) {
         pegtwin::files::ensure_writable(path)?;
     }
-    let robot = pegtwin::twin::robot::urdf::iiwa14()?;
-    let params = CellParams::default();
-    let manifold = match args.method {
-        MethodArg::Manifold => Some(reference_manifold(&args, &pair, &robot, &params)?),
-        MethodArg::Direct => None,
-    };
-    let mut recorders = (Vec::new(), Replay::new(&pair, &robot));
+    let trial = request.prepare(checked, &Bars::new(true))?;
+    let mut recorders = (Vec::new(), Replay::new(&trial.pair, &trial.robot));
     let recording = args.trace.is_some() || args.replay.is_some();
-    let result = run_trial(
-        &pair,
-        &robot,
-        &params,
-        &config,
-        manifold.as_ref(),
-        args.seed,
-        recording.then_some(&mut recorders as &mut dyn Recorder),
-    )?;
+    let result = trial.run(recording.then_some(&mut recorders as &mut dyn Recorder))?;
     let (rows, replay) = recorders;
     if let Some(path) = &args.trace {
         pegtwin::files::write_atomically(path, &trace_csv(&rows))?;
     }
     if let Some(path) = &args.replay {
-        replay.write_html(path, &result, manifold.as_ref())?;
+        replay.write_html(path, &result, trial.manifold.as_ref())?;
     }
     if args.json {
         println!(
@@ -123,36 +103,6 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
         print_result(&result);
     }
     Ok(0)
-}
-
-/// The manifold given, or the cached one for this pair, built (and cached) when missing.
-fn reference_manifold(
-    args: &TrialArgs,
-    pair: &PartPair,
-    robot: &pegtwin::twin::robot::RobotModel,
-    params: &CellParams,
-) -> Result<Manifold> {
-    if let Some(path) = &args.manifold {
-        if !file::is_binary(path) && path.extension().is_some_and(|e| e == "csv") {
-            return Err(pegtwin::error::Error::file(
-                path,
-                format!(
-                    "a trial needs a manifold file that records its geometry and clearance; make \
-                     one from this CSV with `pegtwin manifold import {} --geometry {} \
-                     --clearance-mm {} --out FILE`",
-                    path.display(),
-                    pair.name,
-                    pair.clearance_m * 1e3
-                ),
-            ));
-        }
-        let m = file::load(path)?;
-        m.check_made_for(pair, path)?;
-        return Ok(m);
-    }
-    let spec = ManifoldSpec::default();
-    let dir = args.cache_dir.as_deref();
-    cache::resolve(pair, robot, &spec, params, dir, &Bars::new(true))
 }
 
 fn print_result(r: &TrialResult) {

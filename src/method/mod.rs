@@ -2,15 +2,19 @@
 //! ([`primitives`], [`manifold`]), observe ([`observe`], after [`search`] when starting above),
 //! register ([`register`], Algorithm 1), insert ([`insert`]); [`trial`] runs them in order.
 //! Every stage drives the cell through a [`session::Session`], which lends it the real robot's
-//! ports and nothing of the simulation's truth. [`validate_arm`] checks the physics under the
+//! ports and nothing of the simulation's truth. [`env`] lends the cell to a learned
+//! policy, step by step (the Python package's Gymnasium environment). [`request`] takes a trial's arguments as people
+//! type them (the command line, the Python package). [`validate_arm`] checks the physics under the
 //! method's gains and primitives (`pegtwin validate --arm`).
 
 pub mod config;
+pub mod env;
 pub mod insert;
 pub mod manifold;
 pub mod observe;
 pub mod primitives;
 pub mod register;
+pub mod request;
 pub mod search;
 pub mod seeds;
 pub mod session;

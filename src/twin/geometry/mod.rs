@@ -56,9 +56,15 @@ pub struct PartPair {
 pub fn check_clearance(clearance_m: f64) -> Result<()> {
     let (lo, hi) = CLEARANCE_RANGE_M;
     if !(clearance_m >= lo && clearance_m <= hi) {
+        // The value as typed in mm: 9 mm reads back as 9.000000000000002 after m and back.
+        let shown_mm = (clearance_m * 1e12).round() / 1e9;
         return Err(Error::Input(format!(
             "clearance {} mm is out of range: expected {} to {} mm",
-            clearance_m * 1e3,
+            if shown_mm.is_finite() {
+                shown_mm
+            } else {
+                clearance_m * 1e3
+            },
             lo * 1e3,
             hi * 1e3
         )));

@@ -1,0 +1,290 @@
+"""pegtwin from Python: trials, campaigns, registration and manifolds of the Rust library.
+
+The Rust library does the work (``pegtwin._pegtwin`` is a thin binding); this module turns its
+records into Python dicts, numpy arrays and pandas DataFrames. Units are SI (m, rad, N, s)
+except where a name says mm or deg, as on the command line. Every bad argument raises
+``ValueError`` with the message the command line prints; the GIL is released while the
+simulation runs, so other Python threads go on.
+
+The Gymnasium environment is ``pegtwin.gym.PegInHoleEnv``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Callable, Dict, Optional, Union
+
+import numpy as np
+
+from . import _pegtwin
+
+__version__ = _pegtwin.__version__
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+__all__ = [
+    "Manifold",
+    "campaign",
+    "load_summary",
+    "load_trials",
+    "register",
+    "trial",
+]
+
+
+def _path(p: Optional[PathLike]) -> Optional[str]:
+    return None if p is None else os.fspath(p)
+
+
+def trial(
+    geometry: str,
+    clearance_mm: float,
+    seed: int = 1,
+    t_obs_s: Optional[float] = None,
+    method: str = "manifold",
+    start: str = "partial",
+    offset_mm: Optional[float] = None,
+    offset_deg: Optional[float] = None,
+    manifold: Optional[PathLike] = None,
+    cache_dir: Optional[PathLike] = None,
+) -> Dict[str, Any]:
+    """Runs one trial of the paper's experiment (paper V-A) and returns its record.
+
+    The record is the one ``pegtwin trial --json`` prints for the same arguments (outcome,
+    estimate errors, final depth, forces, phase times). Arguments left out take the command
+    line's defaults (t_obs 10 s, offsets U(-5, 5) mm and deg).
+
+    Args:
+        geometry: a built-in part pair: ``cross``, ``extrusion``, ``plug3``, ``key``, ``gear``.
+        clearance_mm: diametral clearance, mm (0.01-5).
+        seed: the trial seed; it draws the hole offset and seeds every noise source.
+        t_obs_s: observation time, s.
+        method: ``manifold`` (the paper's method) or ``direct`` (its baseline).
+        start: ``partial`` (partially inserted, the paper's set-up) or ``above`` (search first).
+        offset_mm: half-range of the hole's position offset, mm.
+        offset_deg: half-range of the hole's orientation offset, deg.
+        manifold: a reference manifold file; by default the cached one, built when missing
+            (a minute or more per pair on two cores).
+        cache_dir: folder of cached manifolds (default ``$XDG_CACHE_HOME/pegtwin`` or
+            ``~/.cache/pegtwin``).
+
+    Raises:
+        ValueError: an argument is out of range or unknown, or a file is unreadable.
+    """
+    text = _pegtwin.trial_json(
+        geometry,
+        float(clearance_mm),
+        int(seed),
+        method,
+        start,
+        t_obs_s=t_obs_s,
+        offset_mm=offset_mm,
+        offset_deg=offset_deg,
+        manifold=_path(manifold),
+        cache_dir=_path(cache_dir),
+    )
+    return json.loads(text)
+
+
+def campaign(
+    scenario: PathLike,
+    out: PathLike,
+    threads: Optional[int] = None,
+    shard: Optional[str] = None,
+    resume: bool = False,
+    cache_dir: Optional[PathLike] = None,
+    replays: str = "failures",
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> str:
+    """Runs a campaign from a scenario file into ``out`` and writes its report.
+
+    The same as ``pegtwin campaign SCENARIO --out OUT``: trials in parallel on ``threads``
+    workers (results do not depend on it), ``trials.jsonl``, ``summary.json``, ``report.html``.
+
+    Args:
+        progress: called as ``progress(done, total)`` when the trials start and after each
+            one (from worker threads, holding the GIL). For tqdm::
+
+                bar = tqdm.tqdm()
+                def show(done, total):
+                    bar.total = total
+                    bar.n = done
+                    bar.refresh()
+
+            An exception raised by it stops the campaign and is raised here.
+
+    Ctrl-C stops the campaign cleanly: the trials running finish, everything finished is kept,
+    ``KeyboardInterrupt`` is raised, and ``campaign(..., resume=True)`` completes the folder.
+
+    Returns:
+        ``out``, as a string.
+    """
+    return _pegtwin.campaign(
+        _path(scenario),
+        _path(out),
+        threads=threads,
+        shard=shard,
+        resume=resume,
+        cache_dir=_path(cache_dir),
+        replays=replays,
+        progress=progress,
+    )
+
+
+def _flat_record(record: Dict[str, Any]) -> Dict[str, Any]:
+    """One trials.jsonl line as one DataFrame row: nested fields become prefixed columns."""
+    result = dict(record)
+    row: Dict[str, Any] = {"cell": result.pop("cell"), "trial": result.pop("trial")}
+    offset = result.pop("offset")
+    for name, v in zip(["x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"], offset):
+        row[f"offset_{name}"] = v
+    errors = result.pop("errors") or {}
+    for name in ["x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"]:
+        row[f"error_{name}"] = errors.get(name, np.nan)
+    estimate = result.pop("estimate")
+    for i, name in enumerate(["x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"]):
+        row[f"estimate_{name}"] = np.nan if estimate is None else estimate[i]
+    fault = result.pop("fault")
+    row["fault_reason"] = None if fault is None else fault["reason"]
+    row["fault_time_s"] = np.nan if fault is None else fault["time_s"]
+    for name, v in result.pop("times").items():
+        row[f"time_{name}"] = v
+    row.update(result)
+    if row["final_depth_mm"] is None:
+        row["final_depth_mm"] = np.nan
+    return row
+
+
+def load_trials(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
+    """The trials of a campaign folder, one row per trial.
+
+    Columns: ``cell``, ``trial``, ``seed``, ``geometry``, ``clearance_mm``, ``method``,
+    ``start``, ``t_obs_s``, ``outcome``, ``success``, ``final_depth_mm``, ``peak_fz_n``,
+    ``mean_fz_n``, ``contact_observations``, ``observations_used``, the hole offset
+    ``offset_x_mm`` ... ``offset_yaw_deg``, the estimate's errors ``error_x_mm`` ...
+    ``error_yaw_deg`` (NaN for ``direct``), the estimate ``estimate_x_m`` ... ``estimate_yaw_rad``,
+    ``fault_reason`` and ``fault_time_s``, ``stopped``, the phase times ``time_search_s`` ...
+    ``time_insert_s``, and ``insert_fz_n`` (the insertion's |Fz| profile, a list per row).
+    """
+    import pandas as pd
+
+    path = Path(dir) / "trials.jsonl"
+    if not path.is_file():
+        raise ValueError(f"{path}: no trials.jsonl (is {dir} a campaign folder?)")
+    rows = []
+    with open(path, encoding="utf-8") as f:
+        for n, line in enumerate(f, start=1):
+            if not line.strip():
+                continue
+            try:
+                rows.append(_flat_record(json.loads(line)))
+            except (json.JSONDecodeError, KeyError, TypeError) as e:
+                raise ValueError(f"{path}: line {n}: not a trial record ({e})") from None
+    return pd.DataFrame(rows)
+
+
+def load_summary(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
+    """The per-cell summary of a finished campaign (``summary.json``), one row per cell.
+
+    Columns are the summary's fields (geometry, clearance, method, t_obs, trials, successes,
+    success rate and its Wilson interval, errors, forces); nested ones are flattened with ``_``.
+    The whole file is in ``DataFrame.attrs["summary"]``.
+    """
+    import pandas as pd
+
+    path = Path(dir) / "summary.json"
+    if not path.is_file():
+        raise ValueError(f"{path}: no summary.json (is {dir} a finished campaign folder?)")
+    with open(path, encoding="utf-8") as f:
+        summary = json.load(f)
+    frame = pd.json_normalize(summary["cells"], sep="_")
+    frame.attrs["summary"] = summary
+    return frame
+
+
+class Manifold:
+    """A reference contact manifold (paper IV-B): contact poses ``hole_T_peg`` and normals.
+
+    ``points`` and ``normals`` are (N, 6) float64 arrays: x, y, z in m and roll, pitch, yaw
+    in rad (R = Rz(yaw) Ry(pitch) Rx(roll)); normals in the manifold's scaled 6-D metric.
+    """
+
+    def __init__(self, inner: "_pegtwin.ManifoldFile") -> None:
+        self._inner = inner
+
+    @classmethod
+    def load(cls, path: PathLike) -> "Manifold":
+        """Loads a manifold file written by ``pegtwin manifold build|import|synth``."""
+        return cls(_pegtwin.ManifoldFile.load(os.fspath(path)))
+
+    @property
+    def points(self) -> np.ndarray:
+        return self._inner.points
+
+    @property
+    def normals(self) -> np.ndarray:
+        return self._inner.normals
+
+    @property
+    def meta(self) -> Dict[str, Any]:
+        """Geometry, clearance (m), units, metric, neighbours, source and seed."""
+        return json.loads(self._inner.meta_json())
+
+    def __len__(self) -> int:
+        return len(self._inner)
+
+    def __repr__(self) -> str:
+        meta = self.meta
+        return f"Manifold({meta['geometry']!r}, {len(self)} poses)"
+
+
+def register(
+    manifold: Union[Manifold, PathLike],
+    observations: "np.typing.ArrayLike",
+    init: "np.typing.ArrayLike",
+    solver: Optional[str] = None,
+    iterations: Optional[int] = None,
+    restarts: Optional[int] = None,
+    seed: Optional[int] = None,
+    normal_k: Optional[int] = None,
+) -> Dict[str, Any]:
+    """Estimates the hole pose from contact observations (paper IV-D, Algorithm 1).
+
+    Args:
+        manifold: a ``Manifold`` or the path of a manifold file.
+        observations: (N, 6) contact poses ``base_T_peg`` (m, rad).
+        init: the initial hole estimate ``base_T_hole``, 6 values (m, rad).
+        solver: ``least-squares`` (default) or ``paper`` (Algorithm 1's update).
+        iterations, restarts, seed, normal_k: the registration's settings (defaults as
+            ``pegtwin register``).
+
+    Returns:
+        The registration (``pegtwin register --json`` prints it under ``result``): ``estimate``
+        (the hole pose ``base_T_hole`` as a numpy array, m and rad), ``solver``, ``restarts``
+        (each with its initial and final pose, iterations, residual and whether it was
+        rejected), ``kept`` and ``time`` (wall seconds per stage).
+    """
+    if not isinstance(manifold, Manifold):
+        manifold = Manifold.load(manifold)
+    obs = np.ascontiguousarray(np.asarray(observations, dtype=np.float64))
+    if obs.ndim != 2:
+        raise ValueError(
+            f"observations with {obs.ndim} dimensions: expected (N, 6) rows of x, y, z (m), "
+            "roll, pitch, yaw (rad)"
+        )
+    start = np.ascontiguousarray(np.asarray(init, dtype=np.float64).reshape(-1))
+    text = _pegtwin.register_json(
+        manifold._inner,
+        obs,
+        start,
+        solver=solver,
+        iterations=iterations,
+        restarts=restarts,
+        seed=seed,
+        normal_k=normal_k,
+    )
+    result = json.loads(text)
+    result["estimate"] = np.asarray(result["estimate"], dtype=np.float64)
+    return result

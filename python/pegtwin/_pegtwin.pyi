@@ -1,0 +1,75 @@
+"""Type stubs of the Rust binding (``pegtwin._pegtwin``); use the ``pegtwin`` module's API."""
+
+from typing import Any, Callable, Dict, Optional, Tuple
+
+import numpy as np
+
+__version__: str
+
+def trial_json(
+    geometry: str,
+    clearance_mm: float,
+    seed: int,
+    method: str,
+    start: str,
+    t_obs_s: Optional[float] = None,
+    offset_mm: Optional[float] = None,
+    offset_deg: Optional[float] = None,
+    manifold: Optional[str] = None,
+    cache_dir: Optional[str] = None,
+) -> str: ...
+def campaign(
+    scenario: str,
+    out: str,
+    threads: Optional[int] = None,
+    shard: Optional[str] = None,
+    resume: bool = False,
+    cache_dir: Optional[str] = None,
+    replays: str = "failures",
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> str: ...
+def register_json(
+    manifold: ManifoldFile,
+    observations: np.ndarray,
+    init: np.ndarray,
+    solver: Optional[str] = None,
+    iterations: Optional[int] = None,
+    restarts: Optional[int] = None,
+    seed: Optional[int] = None,
+    normal_k: Optional[int] = None,
+) -> str: ...
+
+class ManifoldFile:
+    @staticmethod
+    def load(path: str) -> ManifoldFile: ...
+    @property
+    def points(self) -> np.ndarray: ...
+    @property
+    def normals(self) -> np.ndarray: ...
+    def meta_json(self) -> str: ...
+    def __len__(self) -> int: ...
+
+class Env:
+    def __init__(
+        self,
+        geometry: str,
+        clearance_mm: float,
+        start: str = "partial",
+        control_hz: Optional[float] = None,
+        episode_s: Optional[float] = None,
+        offset_mm: Optional[float] = None,
+        offset_deg: Optional[float] = None,
+        max_step_mm: Optional[float] = None,
+        max_step_deg: Optional[float] = None,
+        variable_stiffness: bool = False,
+    ) -> None: ...
+    @property
+    def action_len(self) -> int: ...
+    @property
+    def control_hz(self) -> float: ...
+    @property
+    def episode_s(self) -> float: ...
+    def reset(self, seed: int) -> Tuple[np.ndarray, Dict[str, Any]]: ...
+    def step(
+        self, action: np.ndarray
+    ) -> Tuple[np.ndarray, float, bool, bool, Dict[str, Any]]: ...

@@ -1,0 +1,210 @@
+"""The package's API against the command line: same records, same errors, DataFrames."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import pegtwin
+from conftest import run_cli
+
+
+def cli_trial(cli: Path, *args: str) -> dict:
+    o = run_cli(cli, "trial", *args, "--json")
+    assert o.returncode == 0, o.stderr
+    return json.loads(o.stdout)
+
+
+def test_a_direct_trial_is_the_command_lines_record(cli: Path) -> None:
+    record = pegtwin.trial(geometry="cross", clearance_mm=0.5, seed=3, method="direct", t_obs_s=2)
+    expected = cli_trial(
+        cli, "--geometry", "cross", "--clearance-mm", "0.5", "--seed", "3",
+        "--method", "direct", "--t-obs", "2",
+    )
+    assert record == expected
+    assert record["method"] == "direct" and record["seed"] == 3
+
+
+def test_a_manifold_trial_is_the_command_lines_record(cli: Path, small_manifold: Path) -> None:
+    record = pegtwin.trial(
+        "cross", 0.5, seed=5, t_obs_s=3, offset_mm=2, offset_deg=1, manifold=small_manifold
+    )
+    expected = cli_trial(
+        cli, "--geometry", "cross", "--clearance-mm", "0.5", "--seed", "5", "--t-obs", "3",
+        "--offset-mm", "2", "--offset-deg", "1", "--manifold", str(small_manifold),
+    )
+    assert record == expected
+    assert record["errors"] is not None and record["outcome"] in ("success", "failure")
+
+
+@pytest.mark.parametrize(
+    "kwargs, cli_args",
+    [
+        (dict(geometry="cross", clearance_mm=99), ["--geometry", "cross", "--clearance-mm", "99"]),
+        (dict(geometry="donut", clearance_mm=0.5), ["--geometry", "donut", "--clearance-mm", "0.5"]),
+        (
+            dict(geometry="cross", clearance_mm=0.5, offset_mm=80),
+            ["--geometry", "cross", "--clearance-mm", "0.5", "--offset-mm", "80"],
+        ),
+        (
+            dict(geometry="cross", clearance_mm=0.5, t_obs_s=0.01),
+            ["--geometry", "cross", "--clearance-mm", "0.5", "--t-obs", "0.01"],
+        ),
+        (
+            dict(geometry="cross", clearance_mm=0.5, manifold="/nonexistent/m.manifold"),
+            ["--geometry", "cross", "--clearance-mm", "0.5", "--manifold", "/nonexistent/m.manifold"],
+        ),
+    ],
+)
+def test_bad_arguments_raise_value_error_with_the_command_lines_message(
+    cli: Path, kwargs: dict, cli_args: list
+) -> None:
+    o = run_cli(cli, "trial", *cli_args)
+    assert o.returncode == 2
+    message = o.stderr.strip().removeprefix("error: ")
+    with pytest.raises(ValueError) as raised:
+        pegtwin.trial(**kwargs)
+    assert str(raised.value) == message
+
+
+def test_names_the_command_line_spells_as_flags_are_checked_too() -> None:
+    with pytest.raises(ValueError, match="method 'fast': expected manifold or direct"):
+        pegtwin.trial("cross", 0.5, method="fast")
+    with pytest.raises(ValueError, match="start 'side': expected partial or above"):
+        pegtwin.trial("cross", 0.5, start="side")
+
+
+def test_the_gil_is_released_while_a_trial_runs() -> None:
+    ticks = 0
+    worker = threading.Thread(
+        target=pegtwin.trial, args=("cross", 0.5), kwargs=dict(method="direct", t_obs_s=1)
+    )
+    worker.start()
+    while worker.is_alive():
+        ticks += 1
+        time.sleep(0.001)
+    worker.join()
+    assert ticks > 50, ticks
+
+
+def test_a_campaign_writes_its_folder_and_loads_as_dataframes(
+    cli: Path, scenario: Path, tmp_path: Path
+) -> None:
+    seen = []
+    out = pegtwin.campaign(
+        scenario, tmp_path / "run", threads=2, cache_dir=tmp_path / "cache",
+        progress=lambda done, total: seen.append((done, total)),
+    )
+    assert out == str(tmp_path / "run")
+    assert (tmp_path / "run" / "report.html").is_file()
+    assert seen[0] == (0, 4) and seen[-1] == (4, 4)
+
+    trials = pegtwin.load_trials(out)
+    assert isinstance(trials, pd.DataFrame) and len(trials) == 4
+    for column in [
+        "cell", "trial", "seed", "geometry", "clearance_mm", "method", "t_obs_s", "outcome",
+        "success", "final_depth_mm", "peak_fz_n", "mean_fz_n", "offset_x_mm", "offset_yaw_deg",
+        "error_x_mm", "error_yaw_deg", "estimate_x_m", "fault_reason", "time_observe_s",
+        "insert_fz_n",
+    ]:
+        assert column in trials.columns, column
+    assert set(trials["method"]) == {"manifold", "direct"}
+    direct = trials[trials["method"] == "direct"]
+    assert direct["error_x_mm"].isna().all()
+    manifold = trials[trials["method"] == "manifold"]
+    assert manifold["error_x_mm"].notna().all()
+
+    summary = pegtwin.load_summary(out)
+    assert len(summary) == 2 and "geometry" in summary.columns
+    assert summary.attrs["summary"]["cells"][0]["trials"] == 2
+
+    # The command line's campaign of the same scenario holds the same records.
+    o = run_cli(
+        cli, "campaign", str(scenario), "--out", str(tmp_path / "cli"),
+        "--cache-dir", str(tmp_path / "cache"), "--threads", "1",
+    )
+    assert o.returncode == 0, o.stderr
+    same = (tmp_path / "cli" / "trials.jsonl").read_text()
+    assert (tmp_path / "run" / "trials.jsonl").read_text() == same
+
+
+def test_campaign_errors_are_value_errors(scenario: Path, tmp_path: Path, cli: Path) -> None:
+    o = run_cli(cli, "campaign", str(scenario), "--out", str(tmp_path / "x"), "--threads", "0")
+    with pytest.raises(ValueError) as raised:
+        pegtwin.campaign(scenario, tmp_path / "y", threads=0)
+    assert str(raised.value) == o.stderr.strip().removeprefix("error: ")
+    with pytest.raises(ValueError, match="missing.toml"):
+        pegtwin.campaign(tmp_path / "missing.toml", tmp_path / "z")
+    with pytest.raises(ValueError, match="replays 'some'"):
+        pegtwin.campaign(scenario, tmp_path / "w", replays="some")
+    assert not (tmp_path / "y").exists() and not (tmp_path / "z").exists()
+    with pytest.raises(ValueError, match="trials.jsonl"):
+        pegtwin.load_trials(tmp_path)
+
+
+def test_ctrl_c_stops_a_campaign_cleanly_and_it_resumes(scenario: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    cache = tmp_path / "cache"
+
+    def interrupt_after_the_first(done: int, total: int) -> None:
+        if done == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(KeyboardInterrupt):
+        pegtwin.campaign(
+            scenario, out, threads=1, cache_dir=cache, progress=interrupt_after_the_first
+        )
+    kept = (out / "trials.jsonl").read_text().splitlines()
+    assert 1 <= len(kept) < 4
+    assert not (out / "summary.json").exists()
+    pegtwin.campaign(scenario, out, threads=1, cache_dir=cache, resume=True)
+    assert len(pegtwin.load_trials(out)) == 4
+
+
+def test_a_manifold_loads_as_arrays_and_registers(cli: Path, tmp_path: Path) -> None:
+    m, obs = tmp_path / "cross.manifold", tmp_path / "obs.csv"
+    o = run_cli(
+        cli, "manifold", "synth", "--shape", "cross", "--clearance-mm", "0.5",
+        "--points", "20000", "--out", str(m), "--observations", str(obs),
+        "--observation-count", "300", "--true-pose", "0.6,0.05,0.2,0,0,0.3",
+    )
+    assert o.returncode == 0, o.stderr
+    manifold = pegtwin.Manifold.load(m)
+    assert len(manifold) == 20000
+    assert manifold.points.shape == (20000, 6) and manifold.points.dtype == np.float64
+    assert np.allclose(np.linalg.norm(manifold.normals, axis=1), 1.0, atol=1e-6)
+    assert manifold.meta["units"] == "m, rad"
+
+    observations = np.loadtxt(obs, delimiter=",", skiprows=1)
+    init = [0.601, 0.049, 0.2, 0.0, 0.0, 0.31]
+    result = pegtwin.register(manifold, observations, init)
+    truth = np.array([0.6, 0.05, 0.2, 0.0, 0.0, 0.3])
+    # x, y and yaw are what a synthetic extrusion pins down (as tests/manifold_cli.rs checks).
+    assert np.abs(result["estimate"][:2] - truth[:2]).max() < 0.1e-3
+    assert abs(result["estimate"][5] - truth[5]) < np.radians(0.1)
+    assert len(result["restarts"]) == 8 and result["kept"] >= 1
+
+    o = run_cli(
+        cli, "register", "--manifold", str(m), "--observations", str(obs),
+        "--init", ",".join(map(str, init)), "--json",
+    )
+    assert o.returncode == 0, o.stderr
+    cli_estimate = json.loads(o.stdout)["estimate_base_T_hole"]
+    assert np.array_equal(result["estimate"], np.asarray(cli_estimate))
+
+    with pytest.raises(ValueError, match="expected \\(N, 6\\)"):
+        pegtwin.register(manifold, observations[:, :5], init)
+    with pytest.raises(ValueError, match="solver 'best'"):
+        pegtwin.register(manifold, observations, init, solver="best")
+    with pytest.raises(ValueError):
+        pegtwin.register(manifold, observations[:3], init)
+    with pytest.raises(ValueError, match="nothing.manifold"):
+        pegtwin.Manifold.load(tmp_path / "nothing.manifold")

@@ -1,0 +1,77 @@
+"""The Gymnasium environment: the checker, determinism, the trial's set-up, errors."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import pegtwin
+from pegtwin.gym import PegInHoleEnv
+
+
+def test_the_gymnasium_checker_passes() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # unbounded Box, no render modes: both intended
+        check_env(PegInHoleEnv())
+        check_env(PegInHoleEnv(variable_stiffness=True, control_hz=50))
+
+
+def rollout(env: PegInHoleEnv, seed: int, steps: int) -> list:
+    obs, info = env.reset(seed=seed)
+    actions = np.random.default_rng(seed).uniform(-1, 1, size=(steps, env.action_space.shape[0]))
+    out = [obs]
+    for a in actions:
+        obs, reward, terminated, truncated, info = env.step(a)
+        out += [obs, reward, info["true_wrench"], info["depth_m"]]
+    return out
+
+
+def test_episodes_are_deterministic_per_seed() -> None:
+    a, b = rollout(PegInHoleEnv(), 11, 30), rollout(PegInHoleEnv(), 11, 30)
+    c = rollout(PegInHoleEnv(), 12, 30)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_a_reset_sets_up_the_trial_of_that_seed() -> None:
+    env = PegInHoleEnv()
+    obs, info = env.reset(options={"trial_seed": 3})
+    record = pegtwin.trial("cross", 0.5, seed=3, method="direct", t_obs_s=1)
+    offset = np.asarray(info["hole_offset"])
+    in_mm_deg = np.concatenate([offset[:3] * 1e3, np.degrees(offset[3:])])
+    assert np.allclose(in_mm_deg, record["offset"], atol=1e-9)
+    assert obs.shape == (12,) and obs.dtype == np.float32
+    assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)  # the paper's partial insertion
+
+
+def test_pushing_down_inserts_and_the_truth_is_in_info() -> None:
+    env = PegInHoleEnv(offset_mm=0, offset_deg=0)
+    env.reset(seed=0)
+    total, info = 0.0, {}
+    for _ in range(60):
+        _, reward, terminated, truncated, info = env.step(np.array([0, 0, -1, 0, 0, 0.0]))
+        total += reward
+        if terminated or truncated:
+            break
+    assert info["success"] and terminated and info["sim_fault"] is None
+    assert info["depth_m"] > 0.025 and total > 20
+    assert 0 <= info["penetration_m"] < 0.05e-3
+    assert len(info["true_wrench"]) == 6
+
+
+def test_bad_arguments_raise_value_errors() -> None:
+    with pytest.raises(ValueError, match="clearance 9 mm"):
+        PegInHoleEnv(clearance_mm=9)
+    with pytest.raises(ValueError, match="control_hz 7"):
+        PegInHoleEnv(control_hz=7)
+    env = PegInHoleEnv()
+    with pytest.raises(ValueError, match="step before reset"):
+        env.step(np.zeros(6))
+    env.reset(seed=1)
+    with pytest.raises(ValueError, match="action of length 3"):
+        env.step(np.zeros(3))
+    with pytest.raises(ValueError, match="action value NaN"):
+        env.step(np.array([0, 0, np.nan, 0, 0, 0]))

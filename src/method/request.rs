@@ -1,0 +1,202 @@
+//! One trial as a user asks for it, in the units people type: a built-in geometry by name, the
+//! clearance in mm, the offsets' half-ranges in mm and deg, a reference manifold file or the
+//! cache. `pegtwin trial` and the Python package's `pegtwin.trial` both go through here, so they
+//! check the same values in the same order, fail with the same messages and give the same record.
+
+use crate::error::{Error, Result};
+use crate::method::config::{MAX_OFFSET, Method, Start, TrialConfig};
+use crate::method::manifold::Manifold;
+use crate::method::manifold::cache::{self, BuildProgress, ManifoldSpec};
+use crate::method::manifold::file;
+use crate::method::session::Recorder;
+use crate::method::trial::{TrialResult, run_trial};
+use crate::twin::cell::CellParams;
+use crate::twin::geometry::{self, PartPair};
+use crate::twin::robot::RobotModel;
+use std::path::PathBuf;
+
+/// A trial's arguments as typed (mm, deg, names).
+#[derive(Clone, Debug)]
+pub struct TrialRequest {
+    /// Built-in geometry name (`cross`, `extrusion`, `plug3`, `key`, `gear`).
+    pub geometry: String,
+    /// Diametral clearance, mm.
+    pub clearance_mm: f64,
+    /// Observation time, s.
+    pub t_obs_s: f64,
+    pub method: Method,
+    pub start: Start,
+    /// Trial seed: draws the hole offset and seeds every noise source.
+    pub seed: u64,
+    /// Half-range of the hole's position offset, mm (U(-r, r) on x, y, z).
+    pub offset_mm: f64,
+    /// Half-range of the hole's orientation offset, deg (U(-r, r) on roll, pitch, yaw).
+    pub offset_deg: f64,
+    /// Reference manifold file (`None`: the cache, built on demand).
+    pub manifold: Option<PathBuf>,
+    /// Folder of cached manifolds (`None`: `$XDG_CACHE_HOME/pegtwin` or `~/.cache/pegtwin`).
+    pub cache_dir: Option<PathBuf>,
+}
+
+impl TrialRequest {
+    /// The paper's trial of `geometry` at `clearance_mm`: the manifold method from a partial
+    /// insertion, the library's default observation time and offsets (paper V-A), seed 1.
+    pub fn new(geometry: &str, clearance_mm: f64) -> Self {
+        let defaults = TrialConfig::default();
+        TrialRequest {
+            geometry: geometry.into(),
+            clearance_mm,
+            t_obs_s: defaults.t_obs_s,
+            method: Method::Manifold,
+            start: Start::Partial,
+            seed: 1,
+            offset_mm: defaults.offset_range[0] * 1e3,
+            offset_deg: defaults.offset_range[3].to_degrees(),
+            manifold: None,
+            cache_dir: None,
+        }
+    }
+
+    /// The pair and the trial's settings, every value checked (nothing is built from a value
+    /// before it is checked; nothing is written).
+    pub fn check(&self) -> Result<(PartPair, TrialConfig)> {
+        let clearance_m = self.clearance_mm * 1e-3;
+        geometry::check_clearance(clearance_m)?;
+        let pair =
+            geometry::build_builtin(geometry::builtin_by_name(&self.geometry)?, clearance_m)?;
+        let (max_m, max_rad) = MAX_OFFSET;
+        for (flag, v, max) in [
+            ("--offset-mm", self.offset_mm, max_m * 1e3),
+            ("--offset-deg", self.offset_deg, max_rad.to_degrees()),
+        ] {
+            if !(v >= 0.0 && v <= max) {
+                return Err(Error::Input(format!(
+                    "{flag} {v}: expected a half-range from 0 to {max:.0}"
+                )));
+            }
+        }
+        let (m, a) = (self.offset_mm * 1e-3, self.offset_deg.to_radians());
+        let config = TrialConfig {
+            method: self.method,
+            start: self.start,
+            t_obs_s: self.t_obs_s,
+            offset_range: [m, m, m, a, a, a],
+            ..Default::default()
+        };
+        config.ensure_valid()?;
+        Ok((pair, config))
+    }
+
+    /// Everything the trial needs, from what [`TrialRequest::check`] returned: the robot and,
+    /// for the manifold method, the reference manifold (loaded, or built into the cache and
+    /// reported to `progress`).
+    pub fn prepare(
+        &self,
+        (pair, config): (PartPair, TrialConfig),
+        progress: &dyn BuildProgress,
+    ) -> Result<PreparedTrial> {
+        let robot = crate::twin::robot::urdf::iiwa14()?;
+        let params = CellParams::default();
+        let manifold = match self.method {
+            Method::Manifold => Some(self.reference_manifold(&pair, &robot, &params, progress)?),
+            Method::Direct => None,
+        };
+        Ok(PreparedTrial {
+            pair,
+            robot,
+            params,
+            config,
+            manifold,
+            seed: self.seed,
+        })
+    }
+
+    /// Checks, prepares and runs the trial, unrecorded.
+    pub fn run(&self, progress: &dyn BuildProgress) -> Result<TrialResult> {
+        self.prepare(self.check()?, progress)?.run(None)
+    }
+
+    /// The manifold file given, or the cached one for this pair, built (and cached) when missing.
+    fn reference_manifold(
+        &self,
+        pair: &PartPair,
+        robot: &RobotModel,
+        params: &CellParams,
+        progress: &dyn BuildProgress,
+    ) -> Result<Manifold> {
+        let Some(path) = &self.manifold else {
+            let spec = ManifoldSpec::default();
+            return cache::resolve(
+                pair,
+                robot,
+                &spec,
+                params,
+                self.cache_dir.as_deref(),
+                progress,
+            );
+        };
+        if !file::is_binary(path) && path.extension().is_some_and(|e| e == "csv") {
+            return Err(Error::file(
+                path,
+                format!(
+                    "a trial needs a manifold file that records its geometry and clearance; make \
+                     one from this CSV with `pegtwin manifold import {} --geometry {} \
+                     --clearance-mm {} --out FILE`",
+                    path.display(),
+                    pair.name,
+                    pair.clearance_m * 1e3
+                ),
+            ));
+        }
+        let m = file::load(path)?;
+        m.check_made_for(pair, path)?;
+        Ok(m)
+    }
+}
+
+/// A checked trial with its inputs at hand.
+pub struct PreparedTrial {
+    pub pair: PartPair,
+    pub robot: RobotModel,
+    pub params: CellParams,
+    pub config: TrialConfig,
+    pub manifold: Option<Manifold>,
+    pub seed: u64,
+}
+
+impl PreparedTrial {
+    /// Runs the trial; `recorder` sees every step (a `--trace`, a `--replay`).
+    pub fn run(&self, recorder: Option<&mut dyn Recorder>) -> Result<TrialResult> {
+        run_trial(
+            &self.pair,
+            &self.robot,
+            &self.params,
+            &self.config,
+            self.manifold.as_ref(),
+            self.seed,
+            recorder,
+        )
+    }
+}
+
+/// A method by its name in records and flags (`manifold`, `direct`).
+pub fn method_by_name(name: &str) -> Result<Method> {
+    match name {
+        "manifold" => Ok(Method::Manifold),
+        "direct" => Ok(Method::Direct),
+        _ => Err(Error::Input(format!(
+            "method '{name}': expected manifold or direct"
+        ))),
+    }
+}
+
+/// A start by its name in records and flags (`partial`, `above`).
+pub fn start_by_name(name: &str) -> Result<Start> {
+    match name {
+        "partial" => Ok(Start::Partial),
+        "above" => Ok(Start::Above),
+        _ => Err(Error::Input(format!(
+            "start '{name}': expected partial or above"
+        ))),
+    }
+}
