@@ -398,3 +398,20 @@ fn loader_errors_name_the_file_element_and_reason() {
         "{e}"
     );
 }
+
+#[test]
+fn the_embedded_iiwa14_is_the_shipped_file() {
+    // `urdf::iiwa14()` reads the URDF compiled into the binary (a copied binary or the Python
+    // package has no source tree); it must be the same robot as the file.
+    let embedded = pegtwin::twin::robot::urdf::iiwa14().unwrap();
+    let file = iiwa14();
+    assert_eq!(embedded.dof(), file.dof());
+    assert_eq!(embedded.total_mass_kg(), file.total_mass_kg());
+    let q = [0.3, -0.5, 0.2, 1.1, -0.4, 0.7, 0.1];
+    assert_eq!(embedded.tcp_pose(&q), file.tcp_pose(&q));
+    assert_eq!(
+        format!("{:?}", embedded.links),
+        format!("{:?}", file.links),
+        "links, inertials and limits"
+    );
+}

@@ -6,7 +6,7 @@ use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::control::ImpedanceGains;
 use pegtwin::twin::diagnostics::{AxisStiffness, PushTest, measure_stiffness};
 use pegtwin::twin::geometry::{self, build_builtin, builtin_by_name};
-use pegtwin::twin::robot::urdf::{IIWA14_URDF, load};
+use pegtwin::twin::robot::urdf::{iiwa14, load};
 use pegtwin::twin::robot::{GRAVITY_UPRIGHT, RobotModel};
 use serde_json::json;
 use std::path::PathBuf;
@@ -61,11 +61,10 @@ pub struct RobotArgs {
 impl RobotArgs {
     /// Loads the robot, printing the loader's warnings to stderr.
     pub fn load(&self) -> Result<RobotModel> {
-        let path = self
-            .urdf
-            .clone()
-            .unwrap_or_else(|| PathBuf::from(IIWA14_URDF));
-        let loaded = load(&path, &self.package_path)?;
+        let Some(path) = &self.urdf else {
+            return iiwa14();
+        };
+        let loaded = load(path, &self.package_path)?;
         for w in &loaded.warnings {
             eprintln!("warning: {w}");
         }

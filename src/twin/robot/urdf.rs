@@ -19,10 +19,15 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
-/// The iiwa 14 shipped with pegtwin.
+/// The iiwa 14 shipped with pegtwin: the file in the source tree (for tools that read files).
 pub const IIWA14_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/iiwa14/iiwa14.urdf");
 /// The iiwa 7 variant shipped with pegtwin (placeholder inertials, see the file).
 pub const IIWA7_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/iiwa7/iiwa7.urdf");
+/// The iiwa 14's URDF embedded in the binary (it has no mesh files), so that a binary copied or
+/// installed elsewhere, or the Python package, needs no source tree.
+const IIWA14_URDF_TEXT: &str = include_str!("../../../assets/iiwa14/iiwa14.urdf");
+/// The name the embedded iiwa 14 goes by in messages.
+pub const BUILTIN_IIWA14: &str = "iiwa14.urdf (built in)";
 
 /// A loaded model and the warnings its loading raised.
 pub struct Loaded {
@@ -35,8 +40,13 @@ pub struct Loaded {
 pub fn load(path: &Path, search_path: &[PathBuf]) -> Result<Loaded> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
-    check_xml(&text).map_err(|msg| Error::file(path, format!("not a valid URDF: {msg}")))?;
-    let robot = urdf_rs::read_from_string(&text)
+    load_text(&text, path, search_path)
+}
+
+/// Loads URDF `text` read from `path` (named in messages; meshes resolve from its folder).
+fn load_text(text: &str, path: &Path, search_path: &[PathBuf]) -> Result<Loaded> {
+    check_xml(text).map_err(|msg| Error::file(path, format!("not a valid URDF: {msg}")))?;
+    let robot = urdf_rs::read_from_string(text)
         .map_err(|e| Error::file(path, format!("not a valid URDF: {e}")))?;
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let resolver = Resolver {
@@ -47,9 +57,9 @@ pub fn load(path: &Path, search_path: &[PathBuf]) -> Result<Loaded> {
     build(&robot, &resolver).map_err(|msg| Error::file(path, msg))
 }
 
-/// Loads the shipped iiwa 14.
+/// Loads the shipped iiwa 14 (embedded in the binary).
 pub fn iiwa14() -> Result<RobotModel> {
-    Ok(load(Path::new(IIWA14_URDF), &[])?.model)
+    Ok(load_text(IIWA14_URDF_TEXT, Path::new(BUILTIN_IIWA14), &[])?.model)
 }
 
 /// Numeric attributes of the URDF elements pegtwin reads: how many numbers each holds and the
