@@ -19,7 +19,6 @@ use crate::figures::{self, DrawResult, err};
 use crate::method::config::Method;
 use crate::method::manifold::{cache, plot};
 use crate::method::trial::FZ_PROFILE_DT_S;
-use crate::twin::geometry;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
@@ -577,8 +576,7 @@ pub fn write_manifolds(dir: &Path, scenario: &Scenario, cache_dir: &Path) -> Res
             continue;
         }
         drawn.push(key);
-        let builtin = geometry::builtin_by_name(&cell.geometry)?;
-        let pair = geometry::build_builtin(builtin, cell.clearance_mm * 1e-3)?;
+        let pair = scenario.pair(&cell)?;
         if let Some(m) = cache::cached(&pair, &scenario.manifold, &params, cache_dir)? {
             let name = format!("{MANIFOLD_FIGURE}{}-{}mm", cell.geometry, cell.clearance_mm);
             plot::plot(

@@ -26,7 +26,7 @@ use crate::method::manifold::cache::{self, BuildProgress};
 use crate::method::seeds;
 use crate::method::session::Recorder;
 use crate::method::trial::{TrialResult, errored_trial, run_trial};
-use crate::twin::geometry::{self, PartPair};
+use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -81,6 +81,21 @@ pub struct CampaignFile {
     pub fingerprint: String,
     pub shard: Shard,
     pub scenario: Scenario,
+    /// The folder the scenario's assembly paths are relative to (when it has assemblies).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assembly_dir: Option<PathBuf>,
+}
+
+impl CampaignFile {
+    /// What `campaign.json` holds for `scenario` run as `shard`.
+    fn new(scenario: &Scenario, shard: Shard) -> Self {
+        CampaignFile {
+            fingerprint: scenario.fingerprint(),
+            shard,
+            scenario: scenario.clone(),
+            assembly_dir: (!scenario.assemblies.is_empty()).then(|| scenario.assembly_dir.clone()),
+        }
+    }
 }
 
 /// The seed of trial `index` of a cell (see [`seeds::trial`]: the same for every method of a pair).
@@ -190,11 +205,7 @@ pub fn prepare(
         let cell = &cells[spec.cell];
         let key = pair_key(cell);
         if !pairs.contains_key(&key) {
-            let builtin = geometry::builtin_by_name(&cell.geometry)?;
-            pairs.insert(
-                key.clone(),
-                geometry::build_builtin(builtin, cell.clearance_mm * 1e-3)?,
-            );
+            pairs.insert(key.clone(), scenario.pair(cell)?);
         }
         if cell.method == Method::Manifold && !manifolds.contains_key(&key) {
             let m = cache::resolve(
@@ -390,11 +401,7 @@ pub(crate) fn campaign_with(
     run: &RunOptions,
     run_one: &RunOne<'_>,
 ) -> Result<CampaignRun> {
-    let described = CampaignFile {
-        fingerprint: scenario.fingerprint(),
-        shard: options.shard,
-        scenario: scenario.clone(),
-    };
+    let described = CampaignFile::new(scenario, options.shard);
     let is_new = check_folder(out, &described, options.resume)?;
     let trials_path = out.join(TRIALS_FILE);
     let done = index_records(&trials_path, true)?;
@@ -526,7 +533,12 @@ pub fn read_campaign(dir: &Path) -> Result<CampaignFile> {
             format!("cannot read (is this a campaign folder?): {e}"),
         )
     })?;
-    serde_json::from_str(&text).map_err(|e| Error::file(&path, format!("not a campaign file: {e}")))
+    let mut c: CampaignFile = serde_json::from_str(&text)
+        .map_err(|e| Error::file(&path, format!("not a campaign file: {e}")))?;
+    if let Some(dir) = &c.assembly_dir {
+        c.scenario.load_assemblies(dir)?;
+    }
+    Ok(c)
 }
 
 /// Joins the shards in `dirs` into one campaign folder `out`: same scenario, every shard of the

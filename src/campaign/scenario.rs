@@ -15,12 +15,13 @@ use crate::method::config::{
 use crate::method::manifold::MAX_POINTS;
 use crate::method::manifold::cache::ManifoldSpec;
 use crate::method::register::RegistrationConfig;
+use crate::twin::assembly;
 use crate::twin::cell::CellParams;
 use crate::twin::control::ImpedanceGains;
-use crate::twin::geometry;
+use crate::twin::geometry::{self, PartPair};
 use crate::twin::sensing::SensorParams;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The most trials a cell may ask for.
 pub const MAX_TRIALS_PER_CELL: usize = 1_000_000;
@@ -37,9 +38,21 @@ pub struct Scenario {
     /// Trials per cell.
     pub trials: usize,
     /// Built-in geometry names.
+    #[serde(default)]
     pub geometries: Vec<String>,
-    /// Diametral clearances, mm.
+    /// Diametral clearances of the built-ins, mm.
+    #[serde(default)]
     pub clearances_mm: Vec<f64>,
+    /// Assembly files (your own peg and hole), relative to the scenario file: each runs at the
+    /// clearance measured from its meshes, under its `name`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub assemblies: Vec<PathBuf>,
+    /// The assemblies' pairs, loaded with the scenario (in the order of `assemblies`).
+    #[serde(skip)]
+    pub assembly_pairs: Vec<PartPair>,
+    /// The folder the assembly paths are relative to (the scenario file's), absolute.
+    #[serde(skip)]
+    pub assembly_dir: PathBuf,
     /// Observation times of the manifold method, s.
     pub t_obs_s: Vec<f64>,
     /// Methods to run: "manifold" and/or "direct".
@@ -183,27 +196,56 @@ impl Condition {
 }
 
 impl Scenario {
-    /// Reads and validates a scenario file.
+    /// Reads and validates a scenario file, loading its assemblies (relative to its folder).
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
-        Self::parse(&text).map_err(|e| match e {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        Self::parse_in(&text, dir).map_err(|e| match e {
             Error::Input(msg) => Error::file(path, msg),
             other => other,
         })
     }
 
-    /// Parses and validates scenario text.
+    /// Parses and validates scenario text (assembly paths relative to the working folder).
     pub fn parse(text: &str) -> Result<Self> {
-        let scenario: Scenario = toml::from_str(text).map_err(|e| {
+        Self::parse_in(text, Path::new("."))
+    }
+
+    /// Parses and validates scenario text, loading its assemblies from paths relative to `dir`.
+    pub fn parse_in(text: &str, dir: &Path) -> Result<Self> {
+        let mut scenario: Scenario = toml::from_str(text).map_err(|e| {
             let line = e
                 .span()
                 .map(|s| format!("line {}: ", text[..s.start].matches('\n').count() + 1))
                 .unwrap_or_default();
             Error::Input(format!("{line}{}", e.message()))
         })?;
+        scenario.load_assemblies(dir)?;
         scenario.ensure_valid()?;
         Ok(scenario)
+    }
+
+    /// Loads the assembly files, their paths relative to `dir` (a campaign folder records it:
+    /// `campaign.json` holds the scenario without its loaded pairs).
+    pub fn load_assemblies(&mut self, dir: &Path) -> Result<()> {
+        self.assembly_dir = std::path::absolute(dir)
+            .map_err(|e| Error::file(dir, format!("cannot resolve the folder: {e}")))?;
+        self.assembly_pairs = self
+            .assemblies
+            .iter()
+            .map(|a| Ok(assembly::load(&self.assembly_dir.join(a))?.pair))
+            .collect::<Result<_>>()?;
+        Ok(())
+    }
+
+    /// The pair a cell runs: a built-in at the cell's clearance, or an assembly by its name.
+    pub fn pair(&self, cell: &Condition) -> Result<PartPair> {
+        if let Some(pair) = self.assembly_pairs.iter().find(|p| p.name == cell.geometry) {
+            return Ok(pair.clone());
+        }
+        let builtin = geometry::builtin_by_name(&cell.geometry)?;
+        geometry::build_builtin(builtin, cell.clearance_mm * 1e-3)
     }
 
     /// Checks every field, naming the first that is wrong.
@@ -215,13 +257,18 @@ impl Scenario {
             let expected = format!("1 to {MAX_TRIALS_PER_CELL}");
             return bad("trials", self.trials.to_string(), &expected);
         }
-        if self.geometries.is_empty() {
-            return bad("geometries", "[]".into(), "at least one geometry");
+        if self.geometries.is_empty() && self.assemblies.is_empty() {
+            return bad(
+                "geometries",
+                "[]".into(),
+                "at least one geometry or assembly",
+            );
         }
         for g in &self.geometries {
             geometry::builtin_by_name(g).map_err(|e| Error::Input(format!("geometries: {e}")))?;
         }
-        if self.clearances_mm.is_empty() {
+        self.ensure_assembly_names()?;
+        if self.clearances_mm.is_empty() && !self.geometries.is_empty() {
             return bad("clearances_mm", "[]".into(), "at least one clearance");
         }
         for &c in &self.clearances_mm {
@@ -281,6 +328,24 @@ impl Scenario {
         Ok(())
     }
 
+    /// An assembly's name labels its cells and seeds its trials: it may not be a built-in's or
+    /// another assembly's.
+    fn ensure_assembly_names(&self) -> Result<()> {
+        for (k, pair) in self.assembly_pairs.iter().enumerate() {
+            let taken = geometry::builtin_by_name(&pair.name).is_ok()
+                || self.assembly_pairs[..k].iter().any(|p| p.name == pair.name);
+            if taken {
+                return Err(Error::Input(format!(
+                    "assemblies: {}: its name \"{}\" is already taken (a built-in or another \
+                     assembly); give each assembly its own name",
+                    self.assemblies[k].display(),
+                    pair.name
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// Refuses a geometry, clearance, method or observation time listed twice: it would run the
     /// same cell twice under one label.
     fn ensure_no_repeats(&self) -> Result<()> {
@@ -304,28 +369,35 @@ impl Scenario {
         }
     }
 
-    /// The cells in their fixed order: geometry, clearance, then the manifold method at each
-    /// t_obs, then the direct baseline.
+    /// The cells in their fixed order: geometry, clearance (each built-in at every clearance,
+    /// then each assembly at its measured one), then the manifold method at each t_obs, then
+    /// the direct baseline.
     pub fn cells(&self) -> Vec<Condition> {
+        let builtins = self
+            .geometries
+            .iter()
+            .flat_map(|g| self.clearances_mm.iter().map(move |&c| (g.clone(), c)));
+        let assemblies = self
+            .assembly_pairs
+            .iter()
+            .map(|p| (p.name.clone(), p.clearance_mm()));
         let mut cells = Vec::new();
-        for g in &self.geometries {
-            for &c in &self.clearances_mm {
-                for &method in &[Method::Manifold, Method::Direct] {
-                    if !self.methods.contains(&method) {
-                        continue;
-                    }
-                    let times = match method {
-                        Method::Manifold => self.t_obs_s.clone(),
-                        Method::Direct => vec![self.direct_t_obs_s],
-                    };
-                    for t in times {
-                        cells.push(Condition {
-                            geometry: g.clone(),
-                            clearance_mm: c,
-                            method,
-                            t_obs_s: t,
-                        });
-                    }
+        for (geometry, clearance_mm) in builtins.chain(assemblies) {
+            for &method in &[Method::Manifold, Method::Direct] {
+                if !self.methods.contains(&method) {
+                    continue;
+                }
+                let times = match method {
+                    Method::Manifold => self.t_obs_s.clone(),
+                    Method::Direct => vec![self.direct_t_obs_s],
+                };
+                for t in times {
+                    cells.push(Condition {
+                        geometry: geometry.clone(),
+                        clearance_mm,
+                        method,
+                        t_obs_s: t,
+                    });
                 }
             }
         }
@@ -371,7 +443,11 @@ impl Scenario {
     pub fn fingerprint(&self) -> String {
         let mut s = self.clone();
         s.name.clear();
-        let json = serde_json::to_string(&s).expect("scenario serialises");
+        let mut json = serde_json::to_string(&s).expect("scenario serialises");
+        // The assemblies' contents, not only their paths: editing a mesh is a new campaign.
+        for pair in &self.assembly_pairs {
+            json.push_str(pair.content_key.as_deref().unwrap_or_default());
+        }
         format!("{:08x}", crc32fast::hash(json.as_bytes()))
     }
 }

@@ -164,7 +164,7 @@ pub struct SummaryTally {
 impl SummaryTally {
     pub fn new(scenario: &Scenario) -> Self {
         let cells = scenario.cells();
-        let (pooled, group_of) = pooled_groups(scenario, &cells);
+        let (pooled, group_of) = pooled_groups(&cells);
         SummaryTally {
             cells: vec![CellTally::default(); cells.len()],
             pooled: pooled
@@ -208,14 +208,20 @@ impl SummaryTally {
 /// One group per (method, t_obs) over every geometry and clearance, when there are several
 /// pairs (geometry `all`, clearance the common one or 0 when several are pooled), and the group
 /// of each cell.
-fn pooled_groups(scenario: &Scenario, cells: &[Condition]) -> (Vec<Condition>, Vec<Option<usize>>) {
-    let pairs = scenario.geometries.len() * scenario.clearances_mm.len();
-    if pairs < 2 {
+fn pooled_groups(cells: &[Condition]) -> (Vec<Condition>, Vec<Option<usize>>) {
+    let mut pairs: Vec<(&str, f64)> = Vec::new();
+    for c in cells {
+        if !pairs.contains(&(c.geometry.as_str(), c.clearance_mm)) {
+            pairs.push((c.geometry.as_str(), c.clearance_mm));
+        }
+    }
+    if pairs.len() < 2 {
         return (Vec::new(), vec![None; cells.len()]);
     }
-    let clearance_mm = match scenario.clearances_mm.as_slice() {
-        [c] => *c,
-        _ => 0.0,
+    let clearance_mm = if pairs.iter().all(|p| p.1 == pairs[0].1) {
+        pairs[0].1
+    } else {
+        0.0
     };
     let mut groups: Vec<Condition> = Vec::new();
     let group_of = cells

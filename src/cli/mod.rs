@@ -4,10 +4,12 @@
 use choices::UnitsArg;
 use clap::{Args, Parser, Subcommand};
 use pegtwin::error::{Error, Result};
+use pegtwin::twin::assembly::PairSource;
 use pegtwin::twin::geometry::mesh::load_pair;
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
 use std::path::PathBuf;
 
+mod assembly;
 mod bench;
 mod campaign;
 mod choices;
@@ -16,6 +18,7 @@ mod registration;
 mod robot;
 mod trial;
 mod validate;
+pub use assembly::AssemblyAction;
 pub use bench::BenchArgs;
 pub use campaign::{CampaignArgs, CheckArgs, MergeArgs, TuneArgs};
 pub use registration::{ManifoldAction, RegisterArgs};
@@ -39,6 +42,11 @@ pub enum Command {
     Geometry {
         #[command(subcommand)]
         action: GeometryAction,
+    },
+    /// Your own peg and hole: check an assembly file and show what was measured of its fit.
+    Assembly {
+        #[command(subcommand)]
+        action: AssemblyAction,
     },
     /// Self-check the contact physics on a pair before trusting a campaign (exit 0 only if every
     /// case behaves as expected).
@@ -95,15 +103,47 @@ pub enum GeometryAction {
     },
 }
 
-/// Which pair to use: a built-in, or meshes.
+/// Which pair a trial or a manifold build runs: a built-in at a clearance, or an assembly file.
+#[derive(Args)]
+pub struct PairChoice {
+    /// Built-in geometry name (see `geometry list`).
+    #[arg(long, required_unless_present = "assembly", requires = "clearance_mm")]
+    pub geometry: Option<String>,
+    /// Diametral clearance of the built-in, mm.
+    #[arg(long, allow_negative_numbers = true, requires = "geometry")]
+    pub clearance_mm: Option<f64>,
+    /// An assembly file: your own peg and hole (README, "Your own parts and robot").
+    #[arg(long, conflicts_with_all = ["geometry", "clearance_mm"])]
+    pub assembly: Option<PathBuf>,
+}
+
+impl PairChoice {
+    /// The library's name for the chosen pair.
+    pub fn source(&self) -> PairSource {
+        match (&self.assembly, &self.geometry, self.clearance_mm) {
+            (Some(path), _, _) => PairSource::Assembly(path.clone()),
+            (None, Some(name), Some(clearance_mm)) => PairSource::Builtin {
+                name: name.clone(),
+                clearance_mm,
+            },
+            _ => unreachable!("clap requires --assembly, or --geometry with --clearance-mm"),
+        }
+    }
+}
+
+/// Which pair to validate: a built-in, an assembly file, or meshes.
 #[derive(Args)]
 pub struct PairArgs {
     /// Built-in geometry name (see `geometry list`).
-    #[arg(long, required_unless_present_all = ["peg_mesh", "hole_mesh"])]
+    #[arg(long, required_unless_present_any = ["peg_mesh", "assembly"])]
     pub geometry: Option<String>,
     /// Diametral clearance, mm. For meshes: the clearance they were made with.
-    #[arg(long)]
-    pub clearance_mm: f64,
+    #[arg(long, required_unless_present = "assembly")]
+    pub clearance_mm: Option<f64>,
+    /// An assembly file: your own peg and hole in their frames (README, "Your own parts and
+    /// robot"); the clearance and depth are measured.
+    #[arg(long, conflicts_with_all = ["geometry", "clearance_mm", "peg_mesh"])]
+    pub assembly: Option<PathBuf>,
     /// Peg mesh, peg frame (tip centre at the origin, z up the peg): a folder of convex STL/OBJ
     /// parts or one STL/OBJ file to decompose.
     #[arg(long, requires = "hole_mesh", conflicts_with = "geometry")]
@@ -135,7 +175,17 @@ pub struct ValidateArgs {
 impl PairArgs {
     /// Builds the pair, printing mesh warnings to stderr.
     pub fn build(&self) -> Result<PartPair> {
-        let clearance_m = self.clearance_mm * 1e-3;
+        if let Some(path) = &self.assembly {
+            let (pair, warnings) = PairSource::Assembly(path.clone()).load()?;
+            for w in warnings {
+                eprintln!("warning: {w}");
+            }
+            return Ok(pair);
+        }
+        let clearance_m = self
+            .clearance_mm
+            .expect("clap requires it without --assembly")
+            * 1e-3;
         geometry::check_clearance(clearance_m)?;
         match (&self.geometry, &self.peg_mesh, &self.hole_mesh) {
             (Some(name), _, _) => {
@@ -167,6 +217,7 @@ impl PairArgs {
 pub fn run(cli: Cli) -> Result<i32> {
     match cli.command {
         Command::Geometry { action } => geometry_command(action),
+        Command::Assembly { action } => assembly::assembly_command(action),
         Command::Validate(args) => validate::validate_command(args),
         Command::Manifold { action } => registration::manifold_command(action),
         Command::Register(args) => registration::register_command(args),

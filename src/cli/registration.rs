@@ -276,12 +276,8 @@ pub fn manifold_command(action: ManifoldAction) -> Result<i32> {
 
 #[derive(Args)]
 pub struct BuildArgs {
-    /// Built-in geometry name (see `geometry list`).
-    #[arg(long)]
-    pub geometry: String,
-    /// Diametral clearance, mm.
-    #[arg(long, allow_negative_numbers = true)]
-    pub clearance_mm: f64,
+    #[command(flatten)]
+    pub pair: super::PairChoice,
     /// Output manifold file.
     #[arg(long)]
     pub out: PathBuf,
@@ -302,12 +298,10 @@ pub struct BuildArgs {
 }
 
 fn build(args: BuildArgs) -> Result<()> {
-    let clearance_m = args.clearance_mm * 1e-3;
-    pegtwin::twin::geometry::check_clearance(clearance_m)?;
-    let pair = pegtwin::twin::geometry::build_builtin(
-        pegtwin::twin::geometry::builtin_by_name(&args.geometry)?,
-        clearance_m,
-    )?;
+    let (pair, warnings) = args.pair.source().load()?;
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
     let robot = pegtwin::twin::robot::urdf::iiwa14()?;
     let config = ManifoldSpec {
         episodes: args.episodes,
@@ -328,7 +322,8 @@ fn build(args: BuildArgs) -> Result<()> {
         );
         bar.set_message(format!(
             "sampling {} at {} mm",
-            args.geometry, args.clearance_mm
+            pair.name,
+            pair.clearance_m * 1e3
         ));
     }
     let started = std::time::Instant::now();

@@ -1,5 +1,6 @@
 //! `pegtwin trial`: one online trial, the manifold method or the direct baseline.
 
+use super::PairChoice;
 use super::choices::{MethodArg, StartArg};
 use super::progress::Bars;
 use clap::Args;
@@ -19,12 +20,8 @@ fn default_offsets() -> (f64, f64) {
 
 #[derive(Args)]
 pub struct TrialArgs {
-    /// Built-in geometry name (see `geometry list`).
-    #[arg(long)]
-    pub geometry: String,
-    /// Diametral clearance, mm.
-    #[arg(long, allow_negative_numbers = true)]
-    pub clearance_mm: f64,
+    #[command(flatten)]
+    pub pair: PairChoice,
     /// Observation time, s.
     #[arg(long, default_value_t = TrialConfig::default().t_obs_s, allow_negative_numbers = true)]
     pub t_obs: f64,
@@ -63,8 +60,7 @@ impl TrialArgs {
     /// The library's request for these arguments.
     fn request(&self) -> TrialRequest {
         TrialRequest {
-            geometry: self.geometry.clone(),
-            clearance_mm: self.clearance_mm,
+            pair: self.pair.source(),
             t_obs_s: self.t_obs,
             method: self.method.into(),
             start: self.start.into(),

@@ -1,5 +1,5 @@
-//! One trial as a user asks for it, in the units people type: a built-in geometry by name, the
-//! clearance in mm, the offsets' half-ranges in mm and deg, a reference manifold file or the
+//! One trial as a user asks for it, in the units people type: a built-in geometry by name and the
+//! clearance in mm (or an assembly file), the offsets' half-ranges in mm and deg, a reference manifold file or the
 //! cache. `pegtwin trial` and the Python package's `pegtwin.trial` both go through here, so they
 //! check the same values in the same order, fail with the same messages and give the same record.
 
@@ -10,18 +10,18 @@ use crate::method::manifold::cache::{self, BuildProgress, ManifoldSpec};
 use crate::method::manifold::file;
 use crate::method::session::Recorder;
 use crate::method::trial::{TrialResult, run_trial};
+use crate::twin::assembly::PairSource;
 use crate::twin::cell::CellParams;
-use crate::twin::geometry::{self, PartPair};
+use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
 use std::path::PathBuf;
 
 /// A trial's arguments as typed (mm, deg, names).
 #[derive(Clone, Debug)]
 pub struct TrialRequest {
-    /// Built-in geometry name (`cross`, `extrusion`, `plug3`, `key`, `gear`).
-    pub geometry: String,
-    /// Diametral clearance, mm.
-    pub clearance_mm: f64,
+    /// The pair: a built-in (`cross`, `extrusion`, `plug3`, `key`, `gear`) at a clearance in mm,
+    /// or an assembly file.
+    pub pair: PairSource,
     /// Observation time, s.
     pub t_obs_s: f64,
     pub method: Method,
@@ -44,8 +44,10 @@ impl TrialRequest {
     pub fn new(geometry: &str, clearance_mm: f64) -> Self {
         let defaults = TrialConfig::default();
         TrialRequest {
-            geometry: geometry.into(),
-            clearance_mm,
+            pair: PairSource::Builtin {
+                name: geometry.into(),
+                clearance_mm,
+            },
             t_obs_s: defaults.t_obs_s,
             method: Method::Manifold,
             start: Start::Partial,
@@ -60,10 +62,7 @@ impl TrialRequest {
     /// The pair and the trial's settings, every value checked (nothing is built from a value
     /// before it is checked; nothing is written).
     pub fn check(&self) -> Result<(PartPair, TrialConfig)> {
-        let clearance_m = self.clearance_mm * 1e-3;
-        geometry::check_clearance(clearance_m)?;
-        let pair =
-            geometry::build_builtin(geometry::builtin_by_name(&self.geometry)?, clearance_m)?;
+        let (pair, _warnings) = self.pair.load()?;
         let (max_m, max_rad) = MAX_OFFSET;
         for (flag, v, max) in [
             ("--offset-mm", self.offset_mm, max_m * 1e3),
@@ -144,7 +143,7 @@ impl TrialRequest {
                      --clearance-mm {} --out FILE`",
                     path.display(),
                     pair.name,
-                    pair.clearance_m * 1e3
+                    pair.clearance_mm()
                 ),
             ));
         }

@@ -242,7 +242,7 @@ impl Setup {
         TrialResult {
             seed: self.seeds.trial,
             geometry: pair.name.clone(),
-            clearance_mm: pair.clearance_m * 1e3,
+            clearance_mm: pair.clearance_mm(),
             method: config.method,
             start: config.start,
             t_obs_s: config.t_obs_s,

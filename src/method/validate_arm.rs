@@ -179,7 +179,7 @@ pub fn validate_arm(
     }
     Ok(ArmValidationReport {
         geometry: pair.name.clone(),
-        clearance_mm: pair.clearance_m * 1e3,
+        clearance_mm: pair.clearance_mm(),
         penetration_limit_mm: limit_m * 1e3,
         physics: params.physics.clone(),
         controller: params.controller.clone(),

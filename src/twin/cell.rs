@@ -530,11 +530,11 @@ fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
 }
 
 /// The robot model carrying the peg as its tool: the peg's mass properties (its convex pieces at
-/// the peg mass of `params`) on the flange at `flange_t_tcp`.
+/// the pair's peg mass, else the peg mass of `params`) on the flange at `flange_t_tcp`.
 fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Result<RobotModel> {
     let tcp_on_flange = flange_t_tcp(pair);
     let peg_props = compound_collider(&pair.peg, params.physics.friction)
-        .mass(params.peg_mass_kg as f32)
+        .mass(pair.peg_mass_kg.unwrap_or(params.peg_mass_kg) as f32)
         .build()
         .mass_properties();
     let tool_inertial = Inertial {

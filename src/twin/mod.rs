@@ -2,6 +2,7 @@
 //! the sensors and the cell that steps them together — and the checks of its physics. Nothing
 //! here knows the paper's method.
 
+pub mod assembly;
 pub mod cell;
 pub mod control;
 pub mod diagnostics;

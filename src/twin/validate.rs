@@ -405,7 +405,7 @@ pub fn validate(pair: &PartPair, params: &PhysicsParams, gains: FreePegGains) ->
         .collect();
     ValidationReport {
         geometry: pair.name.clone(),
-        clearance_mm: pair.clearance_m * 1e3,
+        clearance_mm: pair.clearance_mm(),
         penetration_limit_mm: limit_m * 1e3,
         physics: params.clone(),
         gains,

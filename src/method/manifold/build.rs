@@ -263,7 +263,7 @@ fn check_faults(faults: &[(usize, SimFault)], episodes: usize, pair: &PartPair) 
         faults.len(),
         episodes,
         pair.name,
-        pair.clearance_m * 1e3,
+        pair.clearance_mm(),
         MAX_FAULTED_SHARE * 100.0,
         examples.join("; ")
     )))

@@ -97,12 +97,17 @@ pub fn default_dir() -> Result<PathBuf> {
         })
 }
 
-/// Where the manifold of `pair` made by `recipe` is cached in `dir`.
+/// Where the manifold of `pair` made by `recipe` is cached in `dir`: an assembly's pair adds the
+/// checksum of its meshes, frames and mass, so that editing a mesh builds a new file.
 pub fn path(dir: &Path, pair: &PartPair, recipe: &Recipe) -> PathBuf {
+    let content = pair
+        .content_key
+        .as_ref()
+        .map_or(String::new(), |k| format!("{k}-"));
     dir.join(format!(
-        "{}-{}mm-{}.manifold",
+        "{}-{}mm-{content}{}.manifold",
         pair.name,
-        pair.clearance_m * 1e3,
+        pair.clearance_mm(),
         recipe.key()
     ))
 }

@@ -367,7 +367,7 @@ impl Manifold {
                 "this manifold was made for geometry '{}' at {made_at} mm clearance; the trial asks for '{}' at {} mm",
                 self.meta.geometry,
                 pair.name,
-                pair.clearance_m * 1e3
+                pair.clearance_mm()
             ),
         ))
     }

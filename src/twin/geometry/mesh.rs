@@ -105,8 +105,9 @@ impl BoundaryMesh {
     }
 }
 
-/// Length unit of a mesh file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Length unit of a mesh file (`"mm"` or `"m"` in an assembly file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum MeshUnits {
     Mm,
     M,
@@ -120,7 +121,8 @@ impl MeshUnits {
         }
     }
 
-    fn name(self) -> &'static str {
+    /// The unit's name in words.
+    pub fn name(self) -> &'static str {
         match self {
             MeshUnits::Mm => "millimetres",
             MeshUnits::M => "metres",
@@ -268,6 +270,9 @@ pub struct LoadedSolid {
     pub solid: Solid,
     /// Largest deviation between the collision pieces and the input surface, metres.
     pub max_deviation_m: f64,
+    /// Each input file with the largest deviation of its collision pieces from its surface,
+    /// metres (one entry per part of a folder; one for a decomposed file).
+    pub part_deviations: Vec<(PathBuf, f64)>,
     pub warnings: Vec<String>,
 }
 
@@ -305,6 +310,8 @@ pub fn load_pair(
         peg: peg.solid,
         hole: hole.solid,
         cavity_depth_m,
+        peg_mass_kg: None,
+        content_key: None,
     };
     Ok((pair, warnings))
 }
@@ -344,11 +351,17 @@ fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<Lo
     let mut pieces = Vec::new();
     let mut warnings = Vec::new();
     let mut max_dev: f64 = 0.0;
+    let mut part_deviations = Vec::new();
     for file in mesh_files(dir)? {
         let soup = read_mesh(&file, units)?;
-        let piece = ConvexPiece::from_points(&soup.vertices).ok_or_else(|| {
-            Error::file(&file, "the part is flat or degenerate: it has no volume")
-        })?;
+        let piece = ConvexPiece::from_points(&soup.vertices)
+            .filter(|p| p.collider_shape().is_some())
+            .ok_or_else(|| {
+                Error::file(
+                    &file,
+                    "the part is flat or degenerate: it has no volume the physics can take",
+                )
+            })?;
         let surface = trimesh(&soup, &file)?;
         let dev = max_distance_to_surface(piece_surface_samples(&piece).into_iter(), &surface);
         if dev > half_gap_m.min(1e-4) {
@@ -360,6 +373,7 @@ fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<Lo
             ));
         }
         max_dev = max_dev.max(dev);
+        part_deviations.push((file, dev));
         pieces.push(piece);
     }
     Ok(LoadedSolid {
@@ -368,6 +382,7 @@ fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<Lo
             boundary: None,
         },
         max_deviation_m: max_dev,
+        part_deviations,
         warnings,
     })
 }
@@ -393,6 +408,12 @@ fn load_and_decompose(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<
             ConvexPiece::from_points(&p)
         })
         .collect();
+    if pieces.iter().any(|p| p.collider_shape().is_none()) {
+        return Err(Error::file(
+            path,
+            "the convex decomposition produced a part the physics cannot take (flat or degenerate)",
+        ));
+    }
     if pieces.is_empty() {
         return Err(Error::file(
             path,
@@ -426,6 +447,7 @@ fn load_and_decompose(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<
             boundary: None,
         },
         max_deviation_m: dev,
+        part_deviations: vec![(path.to_path_buf(), dev)],
         warnings,
     })
 }

@@ -49,7 +49,24 @@ pub struct PartPair {
     /// The hole block in the hole frame.
     pub hole: Solid,
     /// Depth of the cavity floor below the mouth, metres (tip z at full insertion is minus this).
+    /// For an assembly file's pair, the depth at which the peg is fully inserted: where it seats
+    /// (tip on the floor or shoulder on the block), or the depth its file gives for a through hole.
     pub cavity_depth_m: f64,
+    /// The peg's mass, kg (an assembly's, from its volume or its file); `None`: the cell's
+    /// `peg_mass_kg` (0.3 kg, the built-ins').
+    pub peg_mass_kg: Option<f64>,
+    /// A checksum of what the pair was made from beyond its name and clearance (an assembly's
+    /// mesh contents, frames and mass); `None` for built-ins, which those two decide. Cached
+    /// manifolds are keyed on it.
+    pub content_key: Option<String>,
+}
+
+impl PartPair {
+    /// The diametral clearance in mm to 0.1 um, as records, labels and file names show it (an
+    /// assembly's is measured: 0.498 mm, not 0.49799999999999994).
+    pub fn clearance_mm(&self) -> f64 {
+        (self.clearance_m * 1e7).round() / 1e4
+    }
 }
 
 /// Checks a clearance value (metres) against the supported range.
@@ -115,6 +132,8 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
         peg,
         hole,
         cavity_depth_m: CAVITY_DEPTH_M,
+        peg_mass_kg: None,
+        content_key: None,
     })
 }
 

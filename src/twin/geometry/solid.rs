@@ -1,8 +1,8 @@
 //! Solids as exact unions of convex pieces, with the watertight boundary mesh when we built them.
 
 use super::planar::{P2, Region, convex_decomposition};
-use nalgebra::{Point3, Vector3};
-use parry3d::shape::ConvexPolyhedron;
+use nalgebra::{Isometry3, Point3, Vector3};
+use parry3d::shape::{ConvexPolyhedron, SharedShape};
 
 /// A point in space, metres.
 pub type P3 = Point3<f64>;
@@ -89,10 +89,11 @@ impl ConvexPiece {
     }
 
     /// A convex piece from its points (the convex hull is taken, as for mesh files). `None` if
-    /// they span no volume.
+    /// they span no volume (or parry's hull fails on them).
     pub fn from_points(points: &[P3]) -> Option<Self> {
         let centre = centroid(points);
-        let hull = ConvexPolyhedron::from_convex_hull(&local_f32(points, &centre))?;
+        let local = local_f32(points, &centre);
+        let hull = catch_quietly(|| ConvexPolyhedron::from_convex_hull(&local)).flatten()?;
         let vertices: Vec<P3> = hull
             .points()
             .iter()
@@ -124,6 +125,36 @@ impl ConvexPiece {
             vertices: self.vertices.clone(),
             triangles: self.triangles(),
         }
+    }
+
+    /// The piece moved by `iso` (vertices, normals and edges; the faces keep their order).
+    pub fn transformed(&self, iso: &Isometry3<f64>) -> ConvexPiece {
+        ConvexPiece {
+            vertices: self.vertices.iter().map(|p| iso * p).collect(),
+            faces: self.faces.clone(),
+            face_normals: self.face_normals.iter().map(|n| iso * n).collect(),
+            edge_dirs: self.edge_dirs.iter().map(|e| iso * e).collect(),
+        }
+    }
+
+    /// The engine's shape of the piece, about its centroid (`None` when parry refuses it: a
+    /// piece that is flat, degenerate or whose faces do not close). Loaders check every piece
+    /// with it, so that no part is dropped on its way into the physics.
+    ///
+    /// The piece's own faces go in as they are; where parry cannot rebuild a topology from them
+    /// (its face merging trips an assertion on slivers read back from f32 STL files, a rounding
+    /// problem parry's source notes), the hull of the vertices is taken instead.
+    pub fn collider_shape(&self) -> Option<SharedShape> {
+        let points = self.points_f32_about(&self.centroid());
+        let triangles = self.triangles();
+        catch_quietly(|| SharedShape::convex_mesh(points.clone(), &triangles))
+            .flatten()
+            .or_else(|| catch_quietly(|| SharedShape::convex_hull(&points)).flatten())
+    }
+
+    /// Enclosed volume, m^3.
+    pub fn volume(&self) -> f64 {
+        self.to_mesh().volume()
     }
 
     /// The centroid of the vertices.
@@ -161,6 +192,30 @@ fn newell_normal(pts: &[P3]) -> Vector3<f64> {
         );
     }
     n.normalize()
+}
+
+thread_local! {
+    /// Set while [`catch_quietly`] runs: its panics are caught, not reported.
+    static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f`, turning a panic inside it into `None` without printing it: for parry's
+/// constructors, which assert on some rounding-damaged inputs instead of refusing them. The
+/// panic hook in place before the first call keeps reporting every other panic.
+fn catch_quietly<T>(f: impl FnOnce() -> T) -> Option<T> {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(std::cell::Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    QUIET.with(|q| q.set(true));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    QUIET.with(|q| q.set(false));
+    result.ok()
 }
 
 fn centroid(points: &[P3]) -> P3 {

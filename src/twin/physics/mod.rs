@@ -185,15 +185,17 @@ pub fn pose32(p: &Isometry3<f64>) -> Pose {
     Isometry3::from_parts(t, r).into()
 }
 
-/// One compound collider made of a solid's convex pieces.
+/// One compound collider made of a solid's convex pieces, every one of them: the loaders refuse
+/// a piece the engine cannot take (`ConvexPiece::collider_shape`), so none is dropped here.
 pub fn compound_collider(solid: &Solid, friction: f64) -> ColliderBuilder {
     let shapes: Vec<(Pose, SharedShape)> = solid
         .pieces
         .iter()
-        .filter_map(|p| {
-            let c = p.centroid();
-            let shape = SharedShape::convex_mesh(p.points_f32_about(&c), &p.triangles())?;
-            Some((Pose::from_translation(v32(&c.coords)), shape))
+        .map(|p| {
+            let shape = p
+                .collider_shape()
+                .expect("every piece of a solid was checked by its loader");
+            (Pose::from_translation(v32(&p.centroid().coords)), shape)
         })
         .collect();
     ColliderBuilder::compound(shapes).friction(friction as f32)

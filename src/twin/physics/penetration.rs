@@ -94,16 +94,22 @@ impl PenetrationProbe {
     /// The largest penetration depth (metres) between `moving` placed at `pose` and the fixed
     /// solid, over all pairs of pieces.
     pub fn max_penetration(&self, moving: &Solid, pose: &Isometry3<f64>) -> f64 {
-        let mut worst: f64 = 0.0;
-        for piece in &moving.pieces {
-            let posed = Posed::new(piece, pose);
-            for fixed in &self.fixed {
-                if overlaps(&posed.bounds, &fixed.bounds) {
-                    worst = worst.max(posed_penetration(&posed, fixed));
-                }
-            }
-        }
-        worst
+        moving
+            .pieces
+            .iter()
+            .map(|piece| self.piece_penetration(piece, pose))
+            .fold(0.0, f64::max)
+    }
+
+    /// The largest penetration depth (metres) between one convex `piece` placed at `pose` and
+    /// the fixed solid.
+    pub fn piece_penetration(&self, piece: &ConvexPiece, pose: &Isometry3<f64>) -> f64 {
+        let posed = Posed::new(piece, pose);
+        self.fixed
+            .iter()
+            .filter(|fixed| overlaps(&posed.bounds, &fixed.bounds))
+            .map(|fixed| posed_penetration(&posed, fixed))
+            .fold(0.0, f64::max)
     }
 }
 

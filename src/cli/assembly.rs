@@ -1,0 +1,87 @@
+//! `pegtwin assembly check`: an assembly file loaded and measured, printed.
+
+use clap::Subcommand;
+use pegtwin::error::Result;
+use pegtwin::twin::assembly::measure::Seat;
+use pegtwin::twin::assembly::{AssemblyReport, PartReport, load};
+use std::path::PathBuf;
+
+#[derive(Subcommand)]
+pub enum AssemblyAction {
+    /// Load an assembly file, measure its fit (clearance, insertion depth, what stops the peg,
+    /// blind or through) and check its frames; exit 2 with the field to change if something is
+    /// wrong.
+    Check {
+        /// The assembly file (TOML).
+        file: PathBuf,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+pub fn assembly_command(action: AssemblyAction) -> Result<i32> {
+    match action {
+        AssemblyAction::Check { file, json } => {
+            let report = load(&file)?.report;
+            if json {
+                let text = serde_json::to_string_pretty(&report).expect("report serialises");
+                println!("{text}");
+            } else {
+                print_report(&report);
+            }
+            Ok(0)
+        }
+    }
+}
+
+fn print_part(role: &str, p: &PartReport) {
+    println!(
+        "{role:<5} {}: {} convex pieces, {:.1} x {:.1} x {:.1} mm, {:.0} mm^3, deviation from its surface {:.4} mm",
+        p.source,
+        p.pieces,
+        p.size_mm[0],
+        p.size_mm[1],
+        p.size_mm[2],
+        p.volume_mm3,
+        p.max_deviation_mm
+    );
+}
+
+fn print_report(r: &AssemblyReport) {
+    println!("assembly {} ({})", r.name, r.file.display());
+    print_part("peg", &r.peg);
+    print_part("hole", &r.hole);
+    println!(
+        "clearance (diametral): {:.4} mm minimum, {:.4} mm median over the engagement (gap per side {:.4} / {:.4} mm, measured {:.1} to {:.1} mm below the mouth)",
+        r.clearance_min_mm,
+        r.clearance_median_mm,
+        r.gap_per_side_min_mm,
+        r.gap_per_side_median_mm,
+        r.gap_band_mm[0],
+        r.gap_band_mm[1]
+    );
+    let seat = match (r.seat, r.seat_depth_mm) {
+        (Seat::TipOnFloor, Some(d)) => format!("stops {d:.3} mm in, its tip on the floor"),
+        (Seat::FlangeOnBlock, Some(d)) => format!("stops {d:.3} mm in, its flange on the block"),
+        _ => "passes through: nothing stops it".into(),
+    };
+    println!("the peg, pushed straight in, {seat}");
+    match r.cavity_depth_mm {
+        Some(d) => {
+            println!("blind hole: the floor under the peg's tip is {d:.3} mm below the mouth")
+        }
+        None => println!("through hole: no floor under the peg's tip"),
+    }
+    println!(
+        "full insertion: tip {:.3} mm below the mouth (success within the scenario's success_mm of it)",
+        r.insertion_depth_mm
+    );
+    println!(
+        "peg mass {:.4} kg; the peg starts clear of the hole (checked from 1 mm above the mouth to 5 mm in)",
+        r.peg_mass_kg
+    );
+    for w in &r.warnings {
+        println!("warning: {w}");
+    }
+}

@@ -1,0 +1,544 @@
+//! Assembly files: a user's own peg and hole, described in TOML and loaded into the [`PartPair`]
+//! every command takes (`--assembly FILE`), with what pegtwin measured of the fit
+//! (`pegtwin assembly check FILE`).
+//!
+//! ```toml
+//! name = "my-plug"
+//! [peg]
+//! mesh = "peg_parts/"         # a folder of convex STL/OBJ parts, or one STL/OBJ to decompose
+//! units = "mm"                # or "m"
+//! frame_xyz_mm = [0, 0, -25]  # the peg frame (tip centre, z up the peg) in the mesh's coordinates
+//! frame_rpy_deg = [0, 0, 0]
+//! [hole]
+//! mesh = "hole_parts/"
+//! units = "mm"
+//! frame_xyz_mm = [0, 0, 0]    # the hole frame (mouth centre, z out of the hole)
+//! ```
+//!
+//! A part may instead be a built-in (`builtin = "cross"`, with `clearance_mm` at the top). Paths
+//! are relative to the file; orientations are R = Rz(yaw) Ry(pitch) Rx(roll). Nothing is taken on
+//! trust: the clearance, the depth at which the peg is fully inserted and what stops it there
+//! are measured (`measure`), a frame that puts the peg in the block or a hole upside down is an
+//! error naming the field to change, and a part whose collision shape stands more than a quarter
+//! of the measured clearance off its surface (a non-convex part in a convex-part folder) is
+//! refused by name rather than simulated as a fatter part.
+
+pub mod measure;
+
+use crate::error::{Error, Result};
+use crate::pose::rotation_rpy;
+use crate::twin::geometry::mesh::{MeshUnits, load_solid};
+use crate::twin::geometry::solid::{ConvexPiece, Solid};
+use crate::twin::geometry::{self, PartPair};
+use measure::{Fit, FitError, Seat, measure_fit};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Density of a mesh peg whose file gives neither its density nor its mass: aluminium, kg/m^3.
+pub const DEFAULT_DENSITY_KG_PER_M3: f64 = 2700.0;
+/// Mass of a built-in peg named in an assembly file, kg (the built-ins' peg with its holder).
+pub const BUILTIN_PEG_MASS_KG: f64 = 0.3;
+/// How far in the peg must go before it stops, m: trials start 3 mm in and succeed within 2 mm.
+pub const MIN_INSERTION_M: f64 = 5e-3;
+/// How far from its frame's origin the peg's tip may lie, m.
+const TIP_TOLERANCE_M: f64 = 1e-5;
+/// A part's size must lie in this range (m) for its units to be believed.
+const PART_SIZE_RANGE_M: (f64, f64) = (1e-3, 1.0);
+/// A part standing further off its surface than this fraction of the clearance is refused.
+const MAX_DEVIATION_OF_CLEARANCE: f64 = 0.25;
+
+/// An assembly file as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AssemblyFile {
+    name: String,
+    /// Clearance of built-in parts, mm (a mesh pair's is measured).
+    clearance_mm: Option<f64>,
+    peg: PartEntry,
+    hole: PartEntry,
+    robot: Option<toml::Table>,
+}
+
+/// `[peg]` or `[hole]` as written.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PartEntry {
+    mesh: Option<PathBuf>,
+    builtin: Option<String>,
+    units: Option<MeshUnits>,
+    #[serde(default)]
+    frame_xyz_mm: [f64; 3],
+    #[serde(default)]
+    frame_rpy_deg: [f64; 3],
+    /// Peg only: kg/m^3.
+    density_kg_per_m3: Option<f64>,
+    /// Peg only: kg, with whatever holds it; overrides the density.
+    mass_kg: Option<f64>,
+    /// Hole only: where a through hole counts the peg as inserted, mm below the mouth.
+    success_depth_mm: Option<f64>,
+}
+
+/// One part as loaded, in its own frame.
+struct LoadedPart {
+    solid: Solid,
+    report: PartReport,
+    /// Each input file and its deviation, m.
+    deviations: Vec<(PathBuf, f64)>,
+    warnings: Vec<String>,
+}
+
+/// What was loaded and measured of one part, for `assembly check`.
+#[derive(Clone, Debug, Serialize)]
+pub struct PartReport {
+    /// The mesh path or `builtin NAME`.
+    pub source: String,
+    pub pieces: usize,
+    /// Largest distance between the collision pieces and the input surface, mm.
+    pub max_deviation_mm: f64,
+    /// Size of the part's bounds in its frame (x, y, z), mm.
+    pub size_mm: [f64; 3],
+    /// Volume of its pieces, mm^3.
+    pub volume_mm3: f64,
+}
+
+/// What `pegtwin assembly check` reports (mm, kg).
+#[derive(Clone, Debug, Serialize)]
+pub struct AssemblyReport {
+    pub name: String,
+    pub file: PathBuf,
+    pub peg: PartReport,
+    pub hole: PartReport,
+    /// Diametral clearance (twice the smallest gap per side), mm: the pair's clearance.
+    pub clearance_min_mm: f64,
+    /// Twice the median over the engagement of each 0.5 mm slice's smallest gap, mm.
+    pub clearance_median_mm: f64,
+    pub gap_per_side_min_mm: f64,
+    pub gap_per_side_median_mm: f64,
+    /// Depths below the mouth over which the gap was measured (top, bottom), mm.
+    pub gap_band_mm: [f64; 2],
+    /// How far the peg goes in before it stops, mm (`None`: a through hole).
+    pub seat_depth_mm: Option<f64>,
+    pub seat: Seat,
+    /// Depth of the floor under the peg's tip, mm (`None`: no floor).
+    pub cavity_depth_mm: Option<f64>,
+    pub blind: bool,
+    /// The tip's depth at full insertion, mm: success is within `success_mm` of it.
+    pub insertion_depth_mm: f64,
+    pub peg_mass_kg: f64,
+    pub warnings: Vec<String>,
+}
+
+/// A loaded assembly: the pair every command runs and what was measured of it.
+#[derive(Clone, Debug)]
+pub struct Assembly {
+    pub pair: PartPair,
+    pub report: AssemblyReport,
+}
+
+/// Reads an assembly file, loads its parts into their frames, measures the fit and checks it.
+pub fn load(path: &Path) -> Result<Assembly> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let file = parse(&text).map_err(|msg| Error::file(path, msg))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    check_entries(&file).map_err(|msg| Error::file(path, msg))?;
+    let peg = load_part("peg", &file.peg, dir, file.clearance_mm)?;
+    let hole = load_part("hole", &file.hole, dir, file.clearance_mm)?;
+    check_frames(&peg.solid, &hole.solid).map_err(|msg| Error::file(path, msg))?;
+    let max_depth = -hole.solid.bounds().0.z + peg.solid.bounds().1.z;
+    let fit = measure_fit(&peg.solid, &hole.solid, 1e-3, (MIN_INSERTION_M, max_depth))
+        .map_err(|e| Error::file(path, fit_error(e)))?;
+    check_fit(&fit, &peg, &hole).map_err(|msg| Error::file(path, msg))?;
+    let insertion_depth_m =
+        insertion_depth(&fit, &file.hole, &peg.solid).map_err(|msg| Error::file(path, msg))?;
+    let peg_mass_kg = peg_mass(&file.peg, &peg.solid);
+    let clearance_m = round_to_tenth_um(2.0 * fit.gap_min_m);
+    let content_key = content_key(&peg.solid, &hole.solid, peg_mass_kg, insertion_depth_m);
+    let report = AssemblyReport {
+        name: file.name.clone(),
+        file: path.to_path_buf(),
+        clearance_min_mm: (clearance_m * 1e7).round() / 1e4,
+        clearance_median_mm: 2.0 * fit.gap_median_m * 1e3,
+        gap_per_side_min_mm: fit.gap_min_m * 1e3,
+        gap_per_side_median_mm: fit.gap_median_m * 1e3,
+        gap_band_mm: [fit.gap_band_m.0 * 1e3, fit.gap_band_m.1 * 1e3],
+        seat_depth_mm: fit.seat_depth_m.map(|d| d * 1e3),
+        seat: fit.seat,
+        cavity_depth_mm: fit.cavity_depth_m.map(|d| d * 1e3),
+        blind: fit.cavity_depth_m.is_some(),
+        insertion_depth_mm: insertion_depth_m * 1e3,
+        peg_mass_kg,
+        warnings: peg.warnings.iter().chain(&hole.warnings).cloned().collect(),
+        peg: peg.report,
+        hole: hole.report,
+    };
+    let pair = PartPair {
+        name: file.name,
+        clearance_m,
+        chord_error_m: 0.0,
+        peg: peg.solid,
+        hole: hole.solid,
+        cavity_depth_m: insertion_depth_m,
+        peg_mass_kg: Some(peg_mass_kg),
+        content_key: Some(content_key),
+    };
+    Ok(Assembly { pair, report })
+}
+
+/// The file's TOML, with the line of the first error.
+fn parse(text: &str) -> std::result::Result<AssemblyFile, String> {
+    toml::from_str(text).map_err(|e| {
+        let line = e
+            .span()
+            .map(|s| format!("line {}: ", text[..s.start].matches('\n').count() + 1))
+            .unwrap_or_default();
+        format!("{line}{}", e.message())
+    })
+}
+
+/// Checks the fields that need no mesh: the name, the robot, which fields each part may have.
+fn check_entries(file: &AssemblyFile) -> std::result::Result<(), String> {
+    let name_ok = !file.name.is_empty()
+        && file
+            .name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
+    if !name_ok {
+        return Err(format!(
+            "name = {:?}: expected letters, digits, '-', '_' or '.' (it names cached files)",
+            file.name
+        ));
+    }
+    if file.robot.is_some() {
+        return Err(
+            "[robot]: your own robot is not supported yet; remove the section and the \
+                    trials use the built-in iiwa 14"
+                .into(),
+        );
+    }
+    let builtin = file.peg.builtin.is_some() || file.hole.builtin.is_some();
+    match file.clearance_mm {
+        Some(c) if !builtin => {
+            return Err(format!(
+                "clearance_mm = {c}: only for built-in parts; a mesh pair's clearance is measured"
+            ));
+        }
+        Some(c) => geometry::check_clearance(c * 1e-3).map_err(|e| format!("clearance_mm: {e}"))?,
+        None if builtin => {
+            return Err("clearance_mm: a built-in part needs the clearance to build it at".into());
+        }
+        None => {}
+    }
+    for (section, e) in [("peg", &file.peg), ("hole", &file.hole)] {
+        check_entry(section, e)?;
+    }
+    Ok(())
+}
+
+fn check_entry(section: &str, e: &PartEntry) -> std::result::Result<(), String> {
+    match (&e.mesh, &e.builtin) {
+        (Some(_), Some(_)) => return Err(format!("[{section}]: give mesh or builtin, not both")),
+        (None, None) => {
+            return Err(format!(
+                "[{section}]: give mesh = \"PATH\" or builtin = \"NAME\""
+            ));
+        }
+        (Some(_), None) if e.units.is_none() => {
+            return Err(format!(
+                "{section}.units: missing: say \"mm\" or \"m\" (mesh files carry no unit)"
+            ));
+        }
+        _ => {}
+    }
+    let misplaced = match section {
+        "peg" => e.success_depth_mm.map(|_| "success_depth_mm"),
+        _ => e
+            .density_kg_per_m3
+            .map(|_| "density_kg_per_m3")
+            .or(e.mass_kg.map(|_| "mass_kg")),
+    };
+    if let Some(field) = misplaced {
+        return Err(format!("{section}.{field}: not a field of [{section}]"));
+    }
+    for (field, v, max) in [
+        (
+            "frame_xyz_mm",
+            e.frame_xyz_mm,
+            crate::pose::MAX_COORDINATE_M * 1e3,
+        ),
+        ("frame_rpy_deg", e.frame_rpy_deg, 360.0),
+    ] {
+        if !v.iter().all(|x| x.abs() <= max) {
+            return Err(format!(
+                "{section}.{field} = {v:?}: expected values within +-{max}"
+            ));
+        }
+    }
+    for (field, v, max) in [
+        ("density_kg_per_m3", e.density_kg_per_m3, 30_000.0),
+        ("mass_kg", e.mass_kg, crate::twin::cell::MAX_PEG_MASS_KG),
+        ("success_depth_mm", e.success_depth_mm, 1000.0),
+    ] {
+        if let Some(v) = v.filter(|v| !(*v > 0.0 && *v <= max)) {
+            return Err(format!(
+                "{section}.{field} = {v}: expected more than 0 and at most {max}"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Loads a part (mesh or built-in) and moves it into its frame.
+fn load_part(
+    section: &str,
+    e: &PartEntry,
+    dir: &Path,
+    clearance_mm: Option<f64>,
+) -> Result<LoadedPart> {
+    let (solid, source, deviations, warnings) = match (&e.mesh, &e.builtin) {
+        (Some(mesh), _) => {
+            let path = dir.join(mesh);
+            let units = e.units.expect("checked: a mesh has units");
+            let loaded = load_solid(&path, units, f64::INFINITY).map_err(|e| match e {
+                Error::File { path, msg } => Error::file(path, format!("{msg} ([{section}])")),
+                other => other,
+            })?;
+            let source = path.display().to_string();
+            (
+                loaded.solid,
+                source,
+                loaded.part_deviations,
+                loaded.warnings,
+            )
+        }
+        (None, Some(name)) => {
+            let builtin = geometry::builtin_by_name(name)
+                .map_err(|err| Error::Input(format!("{section}.builtin: {err}")))?;
+            let c = clearance_mm.expect("checked: built-ins come with a clearance") * 1e-3;
+            let pair = geometry::build_builtin(builtin, c)?;
+            let solid = if section == "peg" {
+                pair.peg
+            } else {
+                pair.hole
+            };
+            (solid, format!("builtin {name}"), Vec::new(), Vec::new())
+        }
+        (None, None) => unreachable!("checked: a part has a mesh or a built-in"),
+    };
+    let solid = Solid {
+        pieces: move_into_frame(&solid.pieces, e),
+        boundary: solid
+            .boundary
+            .filter(|_| e.mesh.is_none() && is_identity(e)),
+    };
+    let (lo, hi) = solid.bounds();
+    let size = hi - lo;
+    check_size(section, e, size.amax())?;
+    let report = PartReport {
+        source,
+        pieces: solid.pieces.len(),
+        max_deviation_mm: deviations.iter().map(|d| d.1).fold(0.0, f64::max) * 1e3,
+        size_mm: [size.x * 1e3, size.y * 1e3, size.z * 1e3],
+        volume_mm3: solid.pieces.iter().map(ConvexPiece::volume).sum::<f64>() * 1e9,
+    };
+    Ok(LoadedPart {
+        solid,
+        report,
+        deviations,
+        warnings,
+    })
+}
+
+fn is_identity(e: &PartEntry) -> bool {
+    e.frame_xyz_mm == [0.0; 3] && e.frame_rpy_deg == [0.0; 3]
+}
+
+/// The pieces, given in the mesh's coordinates, in the part's frame (whose pose in those
+/// coordinates the entry gives).
+fn move_into_frame(pieces: &[ConvexPiece], e: &PartEntry) -> Vec<ConvexPiece> {
+    let [x, y, z] = e.frame_xyz_mm.map(|v| v * 1e-3);
+    let [r, p, yaw] = e.frame_rpy_deg.map(f64::to_radians);
+    let mesh_t_frame = Isometry3::from_parts(
+        Translation3::new(x, y, z),
+        UnitQuaternion::from_rotation_matrix(&rotation_rpy(r, p, yaw)),
+    );
+    let frame_t_mesh = mesh_t_frame.inverse();
+    pieces
+        .iter()
+        .map(|p| p.transformed(&frame_t_mesh))
+        .collect()
+}
+
+/// A part smaller than 1 mm or larger than 1 m has its units wrong.
+fn check_size(section: &str, e: &PartEntry, size_m: f64) -> Result<()> {
+    let (lo, hi) = PART_SIZE_RANGE_M;
+    if size_m >= lo && size_m <= hi {
+        return Ok(());
+    }
+    let units = e.units.map_or("", MeshUnits::name);
+    Err(Error::Input(format!(
+        "{section}.units: the {section} measures {:.4} m across, read as {units}: expected a part \
+         between {} mm and {} m (are the units right?)",
+        size_m,
+        lo * 1e3,
+        hi
+    )))
+}
+
+/// The peg's tip at its frame's origin, the hole below its mouth.
+fn check_frames(peg: &Solid, hole: &Solid) -> std::result::Result<(), String> {
+    let (lo, _) = peg.bounds();
+    if lo.z.abs() > TIP_TOLERANCE_M {
+        let (dir, d) = if lo.z < 0.0 {
+            ("below", -lo.z)
+        } else {
+            ("above", lo.z)
+        };
+        return Err(format!(
+            "peg.frame_xyz_mm: the peg's lowest point lies {:.3} mm {dir} its frame's origin: the \
+             peg frame sits at the centre of the peg's tip, z up the peg",
+            d * 1e3
+        ));
+    }
+    let (lo, hi) = hole.bounds();
+    if hi.z > -lo.z {
+        return Err(format!(
+            "hole.frame_rpy_deg: the hole reaches {:.3} mm above its mouth and {:.3} mm below: \
+             the hole frame's z points out of the hole (turn it over, e.g. roll 180)",
+            hi.z * 1e3,
+            -lo.z * 1e3
+        ));
+    }
+    Ok(())
+}
+
+fn fit_error(e: FitError) -> String {
+    match e {
+        FitError::IntersectsAt { depth_m } => format!(
+            "peg.frame_xyz_mm / hole.frame_xyz_mm: with its tip {:.1} mm above the mouth the peg \
+             already intersects the hole: the two frames must line the peg up over the hole",
+            -depth_m * 1e3
+        ),
+        FitError::StopsAt { depth_m } => format!(
+            "peg.frame_xyz_mm / hole.frame_xyz_mm: the peg stops {:.3} mm below the mouth; \
+             expected at least {} mm (are the frames lined up on the hole's axis?)",
+            depth_m * 1e3,
+            MIN_INSERTION_M * 1e3
+        ),
+        FitError::NoEngagement => {
+            "the peg's side never faces the hole's walls: is the hole open at its frame's origin?"
+                .into()
+        }
+    }
+}
+
+/// Every part must be convex to a quarter of the clearance.
+fn check_fit(fit: &Fit, peg: &LoadedPart, hole: &LoadedPart) -> std::result::Result<(), String> {
+    let limit = MAX_DEVIATION_OF_CLEARANCE * 2.0 * fit.gap_min_m;
+    for (section, part) in [("peg", peg), ("hole", hole)] {
+        if let Some((file, dev)) = part.deviations.iter().find(|(_, d)| *d > limit) {
+            return Err(format!(
+                "{section}.mesh: {}: its collision shape stands {:.3} mm off its surface, more \
+                 than a quarter of the measured clearance ({:.3} mm): it is not convex; split it \
+                 into convex parts (CoACD, V-HACD)",
+                file.display(),
+                dev * 1e3,
+                2.0 * fit.gap_min_m * 1e3
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The tip's depth at full insertion: where the peg seats, or the file's for a through hole.
+fn insertion_depth(fit: &Fit, hole: &PartEntry, peg: &Solid) -> std::result::Result<f64, String> {
+    match (fit.seat_depth_m, hole.success_depth_mm) {
+        (Some(d), None) => Ok(d),
+        (Some(d), Some(s)) => Err(format!(
+            "hole.success_depth_mm = {s}: the peg seats {:.3} mm in ({}); the field is for \
+             through holes",
+            d * 1e3,
+            match fit.seat {
+                Seat::TipOnFloor => "tip on the floor",
+                _ => "flange on the block",
+            }
+        )),
+        (None, None) => Err(
+            "hole.success_depth_mm: missing: nothing stops the peg in this \
+                             through hole, so say how deep (mm below the mouth) counts as inserted"
+                .into(),
+        ),
+        (None, Some(s)) => {
+            let reach = peg.bounds().1.z * 1e3;
+            if s >= MIN_INSERTION_M * 1e3 && s < reach {
+                Ok(s * 1e-3)
+            } else {
+                Err(format!(
+                    "hole.success_depth_mm = {s}: expected at least {} mm and less than the \
+                     peg's length, {reach:.3} mm",
+                    MIN_INSERTION_M * 1e3
+                ))
+            }
+        }
+    }
+}
+
+/// The peg's mass: the file's, else its volume times its density (a built-in peg: 0.3 kg).
+fn peg_mass(e: &PartEntry, peg: &Solid) -> f64 {
+    if let Some(m) = e.mass_kg {
+        return m;
+    }
+    if e.builtin.is_some() && e.density_kg_per_m3.is_none() {
+        return BUILTIN_PEG_MASS_KG;
+    }
+    let volume: f64 = peg.pieces.iter().map(ConvexPiece::volume).sum();
+    volume * e.density_kg_per_m3.unwrap_or(DEFAULT_DENSITY_KG_PER_M3)
+}
+
+fn round_to_tenth_um(v: f64) -> f64 {
+    (v * 1e7).round() / 1e7
+}
+
+/// A checksum of the pieces as placed, the mass and the insertion depth.
+fn content_key(peg: &Solid, hole: &Solid, mass_kg: f64, depth_m: f64) -> String {
+    let mut h = crc32fast::Hasher::new();
+    for piece in peg.pieces.iter().chain(&hole.pieces) {
+        for v in &piece.vertices {
+            for c in v.iter() {
+                h.update(&c.to_bits().to_le_bytes());
+            }
+        }
+        h.update(b"|");
+    }
+    h.update(&mass_kg.to_bits().to_le_bytes());
+    h.update(&depth_m.to_bits().to_le_bytes());
+    format!("{:08x}", h.finalize())
+}
+
+/// Which pair a command runs: a built-in at a clearance, or an assembly file.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PairSource {
+    /// A built-in by name at a diametral clearance in mm.
+    Builtin { name: String, clearance_mm: f64 },
+    /// An assembly file.
+    Assembly(PathBuf),
+}
+
+impl PairSource {
+    /// The pair, checked, with the loaders' warnings.
+    pub fn load(&self) -> Result<(PartPair, Vec<String>)> {
+        match self {
+            PairSource::Builtin { name, clearance_mm } => {
+                let clearance_m = clearance_mm * 1e-3;
+                geometry::check_clearance(clearance_m)?;
+                let pair = geometry::build_builtin(geometry::builtin_by_name(name)?, clearance_m)?;
+                Ok((pair, Vec::new()))
+            }
+            PairSource::Assembly(path) => {
+                let assembly = load(path)?;
+                Ok((assembly.pair, assembly.report.warnings))
+            }
+        }
+    }
+}

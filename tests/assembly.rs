@@ -1,0 +1,347 @@
+//! Assembly files: a user's own meshes, in their own frames and units, reach every command as the
+//! built-ins do; the fit is measured from the meshes; bad files are refused by field.
+
+mod common;
+
+use common::{pegtwin, stderr};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use pegtwin::method::request::TrialRequest;
+use pegtwin::pose::rotation_rpy;
+use pegtwin::twin::assembly::measure::Seat;
+use pegtwin::twin::assembly::{PairSource, load};
+use pegtwin::twin::geometry::mesh::{MeshUnits, read_mesh};
+use pegtwin::twin::geometry::planar::rect;
+use pegtwin::twin::geometry::solid::{BoundaryMesh, ConvexPiece, ZPlane};
+use pegtwin::twin::geometry::{Builtin, build_builtin};
+use std::path::Path;
+
+/// A pose from mm and deg, R = Rz(yaw) Ry(pitch) Rx(roll).
+fn pose(xyz_mm: [f64; 3], rpy_deg: [f64; 3]) -> Isometry3<f64> {
+    let [r, p, y] = rpy_deg.map(f64::to_radians);
+    Isometry3::from_parts(
+        Translation3::new(xyz_mm[0] * 1e-3, xyz_mm[1] * 1e-3, xyz_mm[2] * 1e-3),
+        UnitQuaternion::from_rotation_matrix(&rotation_rpy(r, p, y)),
+    )
+}
+
+/// Every STL in `from` moved by `iso` into `to` (millimetres).
+fn move_parts(from: &Path, to: &Path, iso: &Isometry3<f64>) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let path = entry.unwrap().path();
+        let soup = read_mesh(&path, MeshUnits::Mm).unwrap();
+        let moved = BoundaryMesh {
+            vertices: soup.vertices.iter().map(|v| iso * v).collect(),
+            triangles: soup.triangles,
+        };
+        moved
+            .write_stl_mm(&to.join(path.file_name().unwrap()))
+            .unwrap();
+    }
+}
+
+fn frame_lines(iso_xyz: [f64; 3], rpy: [f64; 3]) -> String {
+    format!("frame_xyz_mm = {iso_xyz:?}\nframe_rpy_deg = {rpy:?}\n")
+}
+
+/// A built-in's convex parts, exported, moved into other frames, and described by an assembly
+/// file whose frames undo the move (the peg upside down 25 mm up, the hole turned and shifted).
+fn moved_export(dir: &Path, name: &str, clearance_mm: f64) -> std::path::PathBuf {
+    let out = pegtwin(&[
+        "geometry",
+        "export",
+        name,
+        "--clearance-mm",
+        &clearance_mm.to_string(),
+        "--out",
+        dir.join("export").to_str().unwrap(),
+        "--convex-parts",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (peg_xyz, peg_rpy) = ([10.0, -5.0, 25.0], [180.0, 0.0, 30.0]);
+    let (hole_xyz, hole_rpy) = ([100.0, 50.0, -20.0], [0.0, 0.0, 90.0]);
+    move_parts(
+        &dir.join("export/peg_parts"),
+        &dir.join("parts/peg"),
+        &pose(peg_xyz, peg_rpy),
+    );
+    move_parts(
+        &dir.join("export/hole_parts"),
+        &dir.join("parts/hole"),
+        &pose(hole_xyz, hole_rpy),
+    );
+    let file = dir.join(format!("{name}.toml"));
+    let text = format!(
+        "name = \"my-{name}\"\n[peg]\nmesh = \"parts/peg\"\nunits = \"mm\"\nmass_kg = 0.3\n{}[hole]\nmesh = \"parts/hole/\"\nunits = \"mm\"\n{}",
+        frame_lines(peg_xyz, peg_rpy),
+        frame_lines(hole_xyz, hole_rpy)
+    );
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
+#[test]
+fn exported_parts_in_other_frames_load_as_the_builtin_with_its_measured_clearance() {
+    for (builtin, clearance_mm) in [(Builtin::Cross, 0.5), (Builtin::Plug3, 0.5)] {
+        let dir = tempfile::tempdir().unwrap();
+        let file = moved_export(dir.path(), builtin.name(), clearance_mm);
+        let assembly = load(&file).unwrap();
+        let reference = build_builtin(builtin, clearance_mm * 1e-3).unwrap();
+        let r = &assembly.report;
+        // Within the built-in's chord error per side, both sides: the diametral clearance.
+        let tolerance_mm = 2.0 * reference.chord_error_m * 1e3 + 1e-5;
+        assert!(
+            (r.clearance_min_mm - clearance_mm).abs() <= tolerance_mm,
+            "{}: {} mm",
+            builtin.name(),
+            r.clearance_min_mm
+        );
+        assert_eq!(r.seat, Seat::TipOnFloor);
+        assert!(r.blind);
+        assert!((r.insertion_depth_mm - reference.cavity_depth_m * 1e3).abs() < 1e-3);
+        assert_eq!(r.peg.pieces, reference.peg.pieces.len());
+        assert_eq!(r.hole.pieces, reference.hole.pieces.len());
+        for (a, b) in [
+            (assembly.pair.peg.bounds(), reference.peg.bounds()),
+            (assembly.pair.hole.bounds(), reference.hole.bounds()),
+        ] {
+            assert!((a.0 - b.0).norm() < 1e-6 && (a.1 - b.1).norm() < 1e-6);
+        }
+    }
+}
+
+#[test]
+fn a_trial_on_the_exported_cross_goes_as_on_the_builtin() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = moved_export(dir.path(), "cross", 0.5);
+    let run = |pair: PairSource| {
+        let mut request = TrialRequest::new("cross", 0.5);
+        request.pair = pair;
+        request.method = pegtwin::method::config::Method::Direct;
+        request.seed = 3;
+        request.run(&()).unwrap()
+    };
+    let mine = run(PairSource::Assembly(file));
+    let builtin = run(PairSource::Builtin {
+        name: "cross".into(),
+        clearance_mm: 0.5,
+    });
+    assert_eq!(mine.geometry, "my-cross");
+    assert_eq!(mine.outcome, builtin.outcome);
+    let (a, b) = (
+        mine.final_depth_mm.unwrap(),
+        builtin.final_depth_mm.unwrap(),
+    );
+    assert!((a - b).abs() < 0.5, "{a} vs {b} mm");
+}
+
+/// Writes each box (x0, y0, z0, x1, y1, z1 in mm) as one convex part in `dir`.
+fn write_boxes(dir: &Path, boxes: &[[f64; 6]]) {
+    std::fs::create_dir_all(dir).unwrap();
+    for (k, b) in boxes.iter().enumerate() {
+        let m = b.map(|v| v * 1e-3);
+        let piece = ConvexPiece::slab(
+            &rect(m[0], m[1], m[3], m[4]),
+            ZPlane::flat(m[2]),
+            ZPlane::flat(m[5]),
+        );
+        piece
+            .to_mesh()
+            .write_stl_mm(&dir.join(format!("{k}.stl")))
+            .unwrap();
+    }
+}
+
+/// A square 10 mm pin (`pin_mm` long) under a 30 mm flange (or none), and a square cavity
+/// `clearance_mm` wider, 25 mm deep in a 40 mm block, with or without its floor.
+fn square_pair(
+    dir: &Path,
+    (pin_mm, clearance_mm): (f64, f64),
+    flange: bool,
+    floor: bool,
+    extra: &str,
+) -> std::path::PathBuf {
+    let mut peg = vec![[-5.0, -5.0, 0.0, 5.0, 5.0, pin_mm]];
+    if flange {
+        peg.push([-15.0, -15.0, pin_mm, 15.0, 15.0, pin_mm + 5.0]);
+    }
+    write_boxes(&dir.join("peg"), &peg);
+    let (h, w) = (5.0 + clearance_mm / 2.0, 20.0);
+    let mut hole = vec![
+        [-w, -w, -25.0, -h, w, 0.0],
+        [h, -w, -25.0, w, w, 0.0],
+        [-h, -w, -25.0, h, -h, 0.0],
+        [-h, h, -25.0, h, w, 0.0],
+    ];
+    if floor {
+        hole.push([-w, -w, -35.0, w, w, -25.0]);
+    }
+    write_boxes(&dir.join("hole"), &hole);
+    let file = dir.join("square.toml");
+    let text = format!(
+        "name = \"square\"\n[peg]\nmesh = \"peg\"\nunits = \"mm\"\n[hole]\nmesh = \"hole\"\nunits = \"mm\"\n{extra}"
+    );
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
+#[test]
+fn where_the_peg_seats_is_measured_flange_floor_or_through() {
+    let dir = tempfile::tempdir().unwrap();
+    let seated = load(&square_pair(dir.path(), (20.0, 0.4), true, true, "")).unwrap();
+    let r = &seated.report;
+    assert_eq!(r.seat, Seat::FlangeOnBlock);
+    assert!((r.insertion_depth_mm - 20.0).abs() < 1e-3, "{r:?}");
+    assert!((r.cavity_depth_mm.unwrap() - 25.0).abs() < 1e-3);
+    assert!(
+        (r.clearance_min_mm - 0.4).abs() < 1e-4,
+        "{}",
+        r.clearance_min_mm
+    );
+    assert!((seated.pair.peg_mass_kg.unwrap() - 2700.0 * 6.5e-6).abs() < 1e-6);
+
+    let dir = tempfile::tempdir().unwrap();
+    let through = load(&square_pair(dir.path(), (40.0, 0.4), false, false, "")).unwrap_err();
+    assert!(
+        through
+            .to_string()
+            .contains("hole.success_depth_mm: missing"),
+        "{through}"
+    );
+    let file = square_pair(
+        dir.path(),
+        (40.0, 0.4),
+        false,
+        false,
+        "success_depth_mm = 22\n",
+    );
+    let through = load(&file).unwrap();
+    assert_eq!(through.report.seat, Seat::Through);
+    assert!(!through.report.blind);
+    assert!((through.pair.cavity_depth_m - 22e-3).abs() < 1e-12);
+}
+
+/// At 1 mm: at 0.4 mm this sharp-edged square pin's lateral press reads 21 um of exact
+/// penetration against the 20 um bar (the seat, the subject here, passes there too).
+#[test]
+fn validate_passes_a_pair_whose_flange_seats_before_the_tip_reaches_the_floor() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = square_pair(dir.path(), (20.0, 1.0), true, true, "");
+    let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", stderr(&out));
+}
+
+#[test]
+fn bad_assembly_files_are_refused_by_field_with_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = square_pair(dir.path(), (20.0, 0.4), true, true, "");
+    let text = std::fs::read_to_string(&good).unwrap();
+    let cases = [
+        (
+            text.replace("mesh = \"peg\"", "mesh = \"nowhere\""),
+            "nowhere",
+        ),
+        (
+            text.replace("units = \"mm\"\n[hole]", "units = \"m\"\n[hole]"),
+            "read as metres",
+        ),
+        (
+            text.replace("[hole]\n", "frame_xyz_mm = [0, 0, -10]\n[hole]\n"),
+            "peg.frame_xyz_mm: the peg's lowest point lies 10.000 mm above",
+        ),
+        (
+            text.replace("[hole]\n", "frame_xyz_mm = [3, 0, 0]\n[hole]\n"),
+            "the peg stops 0.000 mm below the mouth",
+        ),
+        (
+            text.replace("[hole]\n", "frame_xyz_mm = [3, 0, 0]\n[hole]\n")
+                + "frame_xyz_mm = [0, 0, -10]\n",
+            "the peg already intersects the hole",
+        ),
+        (
+            format!("{text}frame_rpy_deg = [180, 0, 0]\n"),
+            "hole.frame_rpy_deg",
+        ),
+        (format!("{text}[robot]\nurdf = \"arm.urdf\"\n"), "[robot]"),
+        (
+            text.replace("name = \"square\"", "name = \"a/b\""),
+            "name = \"a/b\"",
+        ),
+        (
+            format!("{text}colour = 1\n"),
+            "line 8: unknown field `colour`",
+        ),
+        (
+            text.replace("units = \"mm\"\n[hole]", "[hole]"),
+            "peg.units: missing",
+        ),
+    ];
+    for (k, (body, expected)) in cases.iter().enumerate() {
+        let file = dir.path().join(format!("bad{k}.toml"));
+        std::fs::write(&file, body).unwrap();
+        let out = pegtwin(&["assembly", "check", file.to_str().unwrap()]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "case {k}: {err}");
+        assert!(err.contains(expected), "case {k}: {err}");
+    }
+}
+
+#[test]
+fn a_scenario_runs_assemblies_beside_builtins_and_keys_on_their_meshes() {
+    let dir = tempfile::tempdir().unwrap();
+    moved_export(dir.path(), "cross", 0.5);
+    let scenario = dir.path().join("mine.toml");
+    std::fs::write(
+        &scenario,
+        "name = \"mine\"\ntrials = 2\ngeometries = [\"cross\"]\nclearances_mm = [1.0]\n\
+         assemblies = [\"cross.toml\"]\nt_obs_s = [10.0]\nmethods = [\"direct\"]\n",
+    )
+    .unwrap();
+    let s = pegtwin::campaign::scenario::Scenario::load(&scenario).unwrap();
+    let labels: Vec<String> = s.cells().iter().map(|c| c.label()).collect();
+    assert_eq!(
+        labels,
+        ["cross 1 mm direct 10 s", "my-cross 0.5 mm direct 10 s"]
+    );
+    let out = dir.path().join("results");
+    let run = pegtwin(&[
+        "campaign",
+        scenario.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    // `check` reads the scenario back from campaign.json, its assemblies with it.
+    let baseline = dir.path().join("baseline.json");
+    let check = pegtwin(&[
+        "check",
+        out.to_str().unwrap(),
+        "--write-baseline",
+        baseline.to_str().unwrap(),
+    ]);
+    assert!(check.status.success(), "{}", stderr(&check));
+    assert!(
+        std::fs::read_to_string(&baseline)
+            .unwrap()
+            .contains("my-cross")
+    );
+
+    // Editing a mesh is another campaign; a name taken by a built-in is refused.
+    let part = dir.path().join("parts/hole/0000.stl");
+    let mut soup = read_mesh(&part, MeshUnits::Mm).unwrap();
+    soup.vertices[0].x -= 1e-4;
+    BoundaryMesh {
+        vertices: soup.vertices,
+        triangles: soup.triangles,
+    }
+    .write_stl_mm(&part)
+    .unwrap();
+    let edited = pegtwin::campaign::scenario::Scenario::load(&scenario).unwrap();
+    assert_ne!(edited.fingerprint(), s.fingerprint());
+    let file = dir.path().join("cross.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, text.replace("my-cross", "cross")).unwrap();
+    let err = pegtwin::campaign::scenario::Scenario::load(&scenario).unwrap_err();
+    assert!(err.to_string().contains("is already taken"), "{err}");
+}
