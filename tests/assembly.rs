@@ -345,3 +345,99 @@ fn a_scenario_runs_assemblies_beside_builtins_and_keys_on_their_meshes() {
     let err = pegtwin::campaign::scenario::Scenario::load(&scenario).unwrap_err();
     assert!(err.to_string().contains("is already taken"), "{err}");
 }
+
+#[test]
+fn mjcf_bodies_of_mesh_and_box_geoms_are_parts() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = pegtwin(&[
+        "geometry",
+        "export",
+        "cross",
+        "--clearance-mm",
+        "0.5",
+        "--out",
+        d.join("export").to_str().unwrap(),
+        "--convex-parts",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // The hole's parts turned 90 deg about z, which its geom's euler turns back.
+    move_parts(
+        &d.join("export/hole_parts"),
+        &d.join("meshes/hole"),
+        &pose([0.0; 3], [0.0, 0.0, 90.0]),
+    );
+    let mut assets = String::new();
+    let mut peg_geoms = String::new();
+    let mut hole_geoms = String::new();
+    for (kind, folder, geoms, extra) in [
+        ("peg", d.join("export/peg_parts"), &mut peg_geoms, ""),
+        (
+            "hole",
+            d.join("meshes/hole"),
+            &mut hole_geoms,
+            " euler=\"0 0 -90\"",
+        ),
+    ] {
+        let mut files: Vec<_> = std::fs::read_dir(&folder)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        files.sort();
+        for (k, f) in files.iter().enumerate() {
+            assets.push_str(&format!(
+                "<mesh name=\"{kind}{k}\" file=\"{}\" scale=\"0.001 0.001 0.001\"/>\n",
+                f.display()
+            ));
+            geoms.push_str(&format!(
+                "<geom type=\"mesh\" mesh=\"{kind}{k}\"{extra}/>\n"
+            ));
+        }
+    }
+    let model = format!(
+        "<mujoco>\n<compiler angle=\"degree\"/>\n<asset>\n{assets}</asset>\n<worldbody>\n\
+         <body name=\"peg\" pos=\"0.5 0 0.3\">\n{peg_geoms}</body>\n\
+         <body name=\"block\" pos=\"0.5 0 0\"><body name=\"hole\" quat=\"1 0 0 0\">\n{hole_geoms}</body></body>\n\
+         <body name=\"square\"><geom type=\"box\" size=\"0.005 0.005 0.01\" pos=\"0 0 0.01\"/></body>\n\
+         <body name=\"square_hole\">\n\
+         <geom type=\"box\" size=\"0.02 0.0148 0.0125\" pos=\"0 0.0202 -0.0125\"/>\n\
+         <geom type=\"box\" size=\"0.02 0.0148 0.0125\" pos=\"0 -0.0202 -0.0125\"/>\n\
+         <geom type=\"box\" size=\"0.0148 0.0054 0.0125\" pos=\"0.0202 0 -0.0125\"/>\n\
+         <geom type=\"box\" size=\"0.0148 0.0054 0.0125\" pos=\"-0.0202 0 -0.0125\"/>\n\
+         <geom type=\"box\" size=\"0.02 0.02 0.005\" pos=\"0 0 -0.03\"/>\n\
+         </body>\n</worldbody>\n</mujoco>\n"
+    );
+    std::fs::write(d.join("env.xml"), model).unwrap();
+    let assembly = |peg: &str, hole: &str| {
+        let file = d.join(format!("{peg}.toml"));
+        let text = format!(
+            "name = \"{peg}\"\n[peg]\nmjcf = \"env.xml\"\nbody = \"{peg}\"\n[hole]\nmjcf = \"env.xml\"\nbody = \"{hole}\"\n"
+        );
+        std::fs::write(&file, text).unwrap();
+        file
+    };
+    let cross = load(&assembly("peg", "hole")).unwrap();
+    assert!(
+        (cross.report.clearance_min_mm - 0.5).abs() < 1e-4,
+        "{:?}",
+        cross.report
+    );
+    assert_eq!(cross.report.seat, Seat::TipOnFloor);
+    assert!((cross.report.insertion_depth_mm - 30.0).abs() < 1e-3);
+    let square = load(&assembly("square", "square_hole")).unwrap();
+    assert!(
+        (square.report.clearance_min_mm - 0.8).abs() < 1e-4,
+        "{:?}",
+        square.report
+    );
+    assert!((square.report.insertion_depth_mm - 25.0).abs() < 1e-3);
+
+    let missing = assembly("square", "no_such_body");
+    let out = pegtwin(&["assembly", "check", missing.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(
+        err.contains("env.xml") && err.contains("no <body name=\"no_such_body\">"),
+        "{err}"
+    );
+}

@@ -24,11 +24,12 @@
 //! refused by name rather than simulated as a fatter part.
 
 pub mod measure;
+pub mod mjcf;
 
 use crate::error::{Error, Result};
 use crate::pose::rotation_rpy;
-use crate::twin::geometry::mesh::{MeshUnits, load_solid};
-use crate::twin::geometry::solid::{ConvexPiece, Solid};
+use crate::twin::geometry::mesh::{MeshUnits, convex_part, load_solid, read_mesh_scaled};
+use crate::twin::geometry::solid::{ConvexPiece, P3, Solid};
 use crate::twin::geometry::{self, PartPair};
 use measure::{Fit, FitError, Seat, measure_fit};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
@@ -66,6 +67,9 @@ struct AssemblyFile {
 struct PartEntry {
     mesh: Option<PathBuf>,
     builtin: Option<String>,
+    /// An MJCF model whose `body` holds the part's geoms.
+    mjcf: Option<PathBuf>,
+    body: Option<String>,
     units: Option<MeshUnits>,
     #[serde(default)]
     frame_xyz_mm: [f64; 3],
@@ -237,19 +241,23 @@ fn check_entries(file: &AssemblyFile) -> std::result::Result<(), String> {
 }
 
 fn check_entry(section: &str, e: &PartEntry) -> std::result::Result<(), String> {
-    match (&e.mesh, &e.builtin) {
-        (Some(_), Some(_)) => return Err(format!("[{section}]: give mesh or builtin, not both")),
-        (None, None) => {
-            return Err(format!(
-                "[{section}]: give mesh = \"PATH\" or builtin = \"NAME\""
-            ));
-        }
-        (Some(_), None) if e.units.is_none() => {
-            return Err(format!(
-                "{section}.units: missing: say \"mm\" or \"m\" (mesh files carry no unit)"
-            ));
-        }
-        _ => {}
+    let given = [e.mesh.is_some(), e.builtin.is_some(), e.mjcf.is_some()];
+    if given.iter().filter(|g| **g).count() != 1 {
+        return Err(format!(
+            "[{section}]: give one of mesh = \"PATH\", builtin = \"NAME\" or mjcf = \"FILE\" \
+             with body = \"NAME\""
+        ));
+    }
+    if e.mesh.is_some() && e.units.is_none() {
+        return Err(format!(
+            "{section}.units: missing: say \"mm\" or \"m\" (mesh files carry no unit)"
+        ));
+    }
+    if e.mjcf.is_some() != e.body.is_some() {
+        return Err(format!(
+            "{section}.body: give it with mjcf = \"FILE\" (the body whose geoms make the part), \
+             and only then"
+        ));
     }
     let misplaced = match section {
         "peg" => e.success_depth_mm.map(|_| "success_depth_mm"),
@@ -324,13 +332,19 @@ fn load_part(
             };
             (solid, format!("builtin {name}"), Vec::new(), Vec::new())
         }
-        (None, None) => unreachable!("checked: a part has a mesh or a built-in"),
+        (None, None) => {
+            let file = dir.join(e.mjcf.as_ref().expect("checked: one source"));
+            let body = e.body.as_deref().expect("checked: mjcf comes with body");
+            let (solid, deviations) = mjcf_solid(&file, body, e.units)?;
+            let source = format!("{} body {body}", file.display());
+            (solid, source, deviations, Vec::new())
+        }
     };
     let solid = Solid {
         pieces: move_into_frame(&solid.pieces, e),
         boundary: solid
             .boundary
-            .filter(|_| e.mesh.is_none() && is_identity(e)),
+            .filter(|_| e.builtin.is_some() && is_identity(e)),
     };
     let (lo, hi) = solid.bounds();
     let size = hi - lo;
@@ -348,6 +362,63 @@ fn load_part(
         deviations,
         warnings,
     })
+}
+
+/// The geoms of an MJCF body as convex parts in the body's frame (lengths in `units`, metres
+/// when not given, as MuJoCo models are), with each mesh part's deviation from its surface.
+fn mjcf_solid(
+    file: &Path,
+    body: &str,
+    units: Option<MeshUnits>,
+) -> Result<(Solid, Vec<(PathBuf, f64)>)> {
+    let units = units.unwrap_or(MeshUnits::M);
+    let s = units.scale();
+    let mut pieces = Vec::new();
+    let mut deviations = Vec::new();
+    for g in mjcf::body_geoms(file, body)? {
+        let place = Isometry3::from_parts(
+            Translation3::from(g.body_t_geom.translation.vector * s),
+            g.body_t_geom.rotation,
+        );
+        match g.shape {
+            mjcf::GeomShape::Mesh { file: mesh, scale } => {
+                let words = format!("{} x scale {scale:?}", units.name());
+                let mut soup = read_mesh_scaled(&mesh, &(scale * s), &words)?;
+                for v in &mut soup.vertices {
+                    *v = place * *v;
+                }
+                let (piece, dev) = convex_part(&soup, &mesh)?;
+                pieces.push(piece);
+                deviations.push((mesh, dev));
+            }
+            mjcf::GeomShape::Box { half_extents } => {
+                pieces.push(box_piece(&(half_extents * s), &place, file, body)?);
+            }
+        }
+    }
+    let solid = Solid {
+        pieces,
+        boundary: None,
+    };
+    Ok((solid, deviations))
+}
+
+/// A box of half-extents `h` (m) placed at `place`.
+fn box_piece(
+    h: &nalgebra::Vector3<f64>,
+    place: &Isometry3<f64>,
+    file: &Path,
+    body: &str,
+) -> Result<ConvexPiece> {
+    let corners: Vec<P3> = (0..8)
+        .map(|k| {
+            let sign = |bit: usize| if k & bit == 0 { -1.0 } else { 1.0 };
+            place * P3::new(sign(1) * h.x, sign(2) * h.y, sign(4) * h.z)
+        })
+        .collect();
+    ConvexPiece::from_points(&corners)
+        .filter(|p| p.collider_shape().is_some())
+        .ok_or_else(|| Error::file(file, format!("body {body}: a box geom with no volume")))
 }
 
 fn is_identity(e: &PartEntry) -> bool {

@@ -114,7 +114,8 @@ pub enum MeshUnits {
 }
 
 impl MeshUnits {
-    fn scale(self) -> f64 {
+    /// Metres per unit.
+    pub fn scale(self) -> f64 {
         match self {
             MeshUnits::Mm => 1e-3,
             MeshUnits::M => 1.0,
@@ -138,6 +139,17 @@ pub struct TriangleSoup {
 
 /// Reads an STL or OBJ file (by extension) into metres.
 pub fn read_mesh(path: &Path, units: MeshUnits) -> Result<TriangleSoup> {
+    let s = units.scale();
+    read_mesh_scaled(path, &nalgebra::Vector3::repeat(s), units.name())
+}
+
+/// Reads an STL or OBJ file into metres, each coordinate times `metres_per_unit` (per axis, as an
+/// MJCF mesh's `scale` times the model's unit); `unit_words` says how it was read, for errors.
+pub fn read_mesh_scaled(
+    path: &Path,
+    metres_per_unit: &nalgebra::Vector3<f64>,
+    unit_words: &str,
+) -> Result<TriangleSoup> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -194,10 +206,10 @@ pub fn read_mesh(path: &Path, units: MeshUnits) -> Result<TriangleSoup> {
     if triangles.iter().flatten().any(|&i| i as usize >= raw.len()) {
         return Err(Error::file(path, "a triangle refers to a missing vertex"));
     }
-    let s = units.scale();
+    let s = metres_per_unit;
     let vertices: Vec<P3> = raw
         .iter()
-        .map(|v| P3::new(v[0] as f64 * s, v[1] as f64 * s, v[2] as f64 * s))
+        .map(|v| P3::new(v[0] as f64 * s.x, v[1] as f64 * s.y, v[2] as f64 * s.z))
         .collect();
     let limit = crate::pose::MAX_COORDINATE_M;
     if let Some(far) = vertices.iter().find(|v| v.coords.amax() > limit) {
@@ -206,10 +218,7 @@ pub fn read_mesh(path: &Path, units: MeshUnits) -> Result<TriangleSoup> {
             format!(
                 "vertex ({:.4}, {:.4}, {:.4}) m lies beyond +-{limit} m: are the units right \
                  (read as {})?",
-                far.x,
-                far.y,
-                far.z,
-                units.name()
+                far.x, far.y, far.z, unit_words
             ),
         ));
     }
@@ -347,23 +356,30 @@ fn mesh_files(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
+/// One convex part from its mesh `soup` (read from `file`): the hull of its vertices, and how far
+/// the hull stands off the mesh's own surface, metres (0 for a convex part). A part the physics
+/// cannot take is an error naming the file.
+pub fn convex_part(soup: &TriangleSoup, file: &Path) -> Result<(ConvexPiece, f64)> {
+    let piece = ConvexPiece::from_points(&soup.vertices)
+        .filter(|p| p.collider_shape().is_some())
+        .ok_or_else(|| {
+            Error::file(
+                file,
+                "the part is flat or degenerate: it has no volume the physics can take",
+            )
+        })?;
+    let surface = trimesh(soup, file)?;
+    let dev = max_distance_to_surface(piece_surface_samples(&piece).into_iter(), &surface);
+    Ok((piece, dev))
+}
+
 fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<LoadedSolid> {
     let mut pieces = Vec::new();
     let mut warnings = Vec::new();
     let mut max_dev: f64 = 0.0;
     let mut part_deviations = Vec::new();
     for file in mesh_files(dir)? {
-        let soup = read_mesh(&file, units)?;
-        let piece = ConvexPiece::from_points(&soup.vertices)
-            .filter(|p| p.collider_shape().is_some())
-            .ok_or_else(|| {
-                Error::file(
-                    &file,
-                    "the part is flat or degenerate: it has no volume the physics can take",
-                )
-            })?;
-        let surface = trimesh(&soup, &file)?;
-        let dev = max_distance_to_surface(piece_surface_samples(&piece).into_iter(), &surface);
+        let (piece, dev) = convex_part(&read_mesh(&file, units)?, &file)?;
         if dev > half_gap_m.min(1e-4) {
             warnings.push(format!(
                 "{}: the part is not convex: its convex hull stands up to {:.3} mm off its surface{}",
