@@ -39,8 +39,8 @@ def _path(p: Optional[PathLike]) -> Optional[str]:
 
 
 def trial(
-    geometry: str,
-    clearance_mm: float,
+    geometry: Optional[str] = None,
+    clearance_mm: Optional[float] = None,
     seed: int = 1,
     t_obs_s: Optional[float] = None,
     method: str = "manifold",
@@ -49,6 +49,7 @@ def trial(
     offset_deg: Optional[float] = None,
     manifold: Optional[PathLike] = None,
     cache_dir: Optional[PathLike] = None,
+    assembly: Optional[PathLike] = None,
 ) -> Dict[str, Any]:
     """Runs one trial of the paper's experiment (paper V-A) and returns its record.
 
@@ -58,7 +59,7 @@ def trial(
 
     Args:
         geometry: a built-in part pair: ``cross``, ``extrusion``, ``plug3``, ``key``, ``gear``.
-        clearance_mm: diametral clearance, mm (0.01-5).
+        clearance_mm: diametral clearance of the built-in, mm (0.01-5).
         seed: the trial seed; it draws the hole offset and seeds every noise source.
         t_obs_s: observation time, s.
         method: ``manifold`` (the paper's method) or ``direct`` (its baseline).
@@ -69,13 +70,15 @@ def trial(
             (a minute or more per pair on two cores).
         cache_dir: folder of cached manifolds (default ``$XDG_CACHE_HOME/pegtwin`` or
             ``~/.cache/pegtwin``).
+        assembly: an assembly file (your own peg and hole, README "Your own parts and robot")
+            instead of ``geometry`` and ``clearance_mm``; its clearance is measured.
 
     Raises:
         ValueError: an argument is out of range or unknown, or a file is unreadable.
     """
     text = _pegtwin.trial_json(
         geometry,
-        float(clearance_mm),
+        None if clearance_mm is None else float(clearance_mm),
         int(seed),
         method,
         start,
@@ -84,6 +87,7 @@ def trial(
         offset_deg=offset_deg,
         manifold=_path(manifold),
         cache_dir=_path(cache_dir),
+        assembly=_path(assembly),
     )
     return json.loads(text)
 

@@ -7,8 +7,8 @@ import numpy as np
 __version__: str
 
 def trial_json(
-    geometry: str,
-    clearance_mm: float,
+    geometry: Optional[str],
+    clearance_mm: Optional[float],
     seed: int,
     method: str,
     start: str,
@@ -17,6 +17,7 @@ def trial_json(
     offset_deg: Optional[float] = None,
     manifold: Optional[str] = None,
     cache_dir: Optional[str] = None,
+    assembly: Optional[str] = None,
 ) -> str: ...
 def campaign(
     scenario: str,

@@ -18,6 +18,7 @@ use pegtwin::method::manifold::{Manifold, file};
 use pegtwin::method::register::{RegistrationConfig, Solver, register as register_hole};
 use pegtwin::method::request::{TrialRequest, method_by_name, start_by_name};
 use pegtwin::pose::Pose6;
+use pegtwin::twin::assembly::PairSource;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -34,15 +35,30 @@ fn py_err(e: Error) -> PyErr {
     }
 }
 
+/// The pair a Python call names: a built-in with its clearance, or an assembly file.
+fn pair_source(
+    geometry: Option<String>,
+    clearance_mm: Option<f64>,
+    assembly: Option<PathBuf>,
+) -> PyResult<PairSource> {
+    match (geometry, clearance_mm, assembly) {
+        (Some(name), Some(clearance_mm), None) => Ok(PairSource::Builtin { name, clearance_mm }),
+        (None, None, Some(path)) => Ok(PairSource::Assembly(path)),
+        _ => Err(PyValueError::new_err(
+            "give geometry and clearance_mm (a built-in), or assembly (an assembly file), not both",
+        )),
+    }
+}
+
 /// One trial (`pegtwin trial --json`): the record as JSON text. Values left out take the
 /// command line's defaults.
 #[pyfunction]
-#[pyo3(signature = (geometry, clearance_mm, seed, method, start, t_obs_s=None, offset_mm=None, offset_deg=None, manifold=None, cache_dir=None))]
+#[pyo3(signature = (geometry, clearance_mm, seed, method, start, t_obs_s=None, offset_mm=None, offset_deg=None, manifold=None, cache_dir=None, assembly=None))]
 #[allow(clippy::too_many_arguments)]
 fn trial_json(
     py: Python<'_>,
-    geometry: String,
-    clearance_mm: f64,
+    geometry: Option<String>,
+    clearance_mm: Option<f64>,
     seed: u64,
     method: &str,
     start: &str,
@@ -51,8 +67,12 @@ fn trial_json(
     offset_deg: Option<f64>,
     manifold: Option<PathBuf>,
     cache_dir: Option<PathBuf>,
+    assembly: Option<PathBuf>,
 ) -> PyResult<String> {
-    let defaults = TrialRequest::new(&geometry, clearance_mm);
+    let defaults = TrialRequest {
+        pair: pair_source(geometry, clearance_mm, assembly)?,
+        ..TrialRequest::new("cross", 0.5)
+    };
     let request = TrialRequest {
         t_obs_s: t_obs_s.unwrap_or(defaults.t_obs_s),
         method: method_by_name(method).map_err(py_err)?,

@@ -33,6 +33,27 @@ def test_a_direct_trial_is_the_command_lines_record(cli: Path) -> None:
     assert record["method"] == "direct" and record["seed"] == 3
 
 
+def test_an_assembly_trial_is_the_command_lines_record(cli: Path, tmp_path: Path) -> None:
+    o = run_cli(
+        cli, "geometry", "export", "cross", "--clearance-mm", "0.5", "--out",
+        str(tmp_path / "cad"), "--convex-parts",
+    )
+    assert o.returncode == 0, o.stderr
+    assembly = tmp_path / "mine.toml"
+    assembly.write_text(
+        'name = "mine"\n[peg]\nmesh = "cad/peg_parts"\nunits = "mm"\n'
+        '[hole]\nmesh = "cad/hole_parts"\nunits = "mm"\n'
+    )
+    record = pegtwin.trial(assembly=assembly, seed=3, method="direct", t_obs_s=2)
+    expected = cli_trial(
+        cli, "--assembly", str(assembly), "--seed", "3", "--method", "direct", "--t-obs", "2"
+    )
+    assert record == expected
+    assert record["geometry"] == "mine" and record["clearance_mm"] == 0.5
+    with pytest.raises(ValueError, match="give geometry and clearance_mm"):
+        pegtwin.trial("cross", 0.5, assembly=assembly)
+
+
 def test_a_manifold_trial_is_the_command_lines_record(cli: Path, small_manifold: Path) -> None:
     record = pegtwin.trial(
         "cross", 0.5, seed=5, t_obs_s=3, offset_mm=2, offset_deg=1, manifold=small_manifold
