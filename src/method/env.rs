@@ -12,11 +12,10 @@
 
 use crate::error::{Error, Result};
 use crate::method::config::{Start, TrialConfig};
-use crate::method::search::start_pose;
 use crate::method::seeds::TrialSeeds;
-use crate::method::trial::draw_offset;
+use crate::method::trial::Setup;
 use crate::pose::{Iso, Pose6};
-use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
+use crate::twin::cell::{Cell, CellParams, SimFault};
 use crate::twin::control::{
     ImpedanceGains, ROTATIONAL_STIFFNESS_RANGE, TRANSLATIONAL_STIFFNESS_RANGE,
 };
@@ -204,35 +203,26 @@ impl PegEnv {
     /// sensors are, the peg at the trial's start and the target where the robot believes that
     /// start to be (the nominal hole's, for a partial insertion). Returns the first observation.
     pub fn reset(&mut self, seed: u64) -> Result<([f64; OBSERVATION_LEN], StepInfo)> {
-        let seeds = TrialSeeds { trial: seed };
-        let nominal = nominal_hole_pose(&self.pair, &self.params);
-        let offset = draw_offset(seeds.offset(), &self.trial.offset_range);
-        let truth = nominal * offset.to_iso();
-        let (start, target) = match self.trial.start {
-            Start::Partial => (
-                tcp_in_hole(&truth, self.trial.start_depth_m),
-                tcp_in_hole(&nominal, self.trial.start_depth_m),
-            ),
-            Start::Above => {
-                let above = start_pose(&nominal, &self.trial);
-                (above, above)
-            }
-        };
-        let mut cell = Cell::new(
+        let setup = Setup::draw(
             &self.pair,
-            self.robot.clone(),
             &self.params,
-            Some(truth),
-            &start,
-            self.config.gains.clone(),
-            seeds.sensors(),
-        )?;
+            &self.trial,
+            TrialSeeds { trial: seed },
+        );
+        // The trial's set-up under the environment's gains from the first step.
+        let under_env_gains = TrialConfig {
+            observe_gains: self.config.gains.clone(),
+            ..self.trial.clone()
+        };
+        let mut cell = setup.cell(&self.pair, &self.robot, &self.params, &under_env_gains)?;
+        let target = setup.believed_start(&self.trial);
         cell.command_pose(target);
+        let (nominal, truth) = (setup.nominal, setup.truth);
         let mut episode = Episode {
             cell,
             nominal,
             truth,
-            offset,
+            offset: setup.offset,
             target,
             depth_m: 0.0,
             fault: None,

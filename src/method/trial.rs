@@ -150,15 +150,21 @@ pub struct TrialResult {
 
 /// The experiment as the experimenters set it up (paper V-A): the nominal hole pose the robot is
 /// told, the true pose (nominal plus a random offset drawn from the trial seed), and the seeds.
-struct Setup {
-    nominal: Iso,
-    offset: Pose6,
-    truth: Iso,
-    seeds: TrialSeeds,
+/// The Gymnasium environment (`method::env`) sets its episodes up through it too.
+pub(crate) struct Setup {
+    pub(crate) nominal: Iso,
+    pub(crate) offset: Pose6,
+    pub(crate) truth: Iso,
+    pub(crate) seeds: TrialSeeds,
 }
 
 impl Setup {
-    fn draw(pair: &PartPair, params: &CellParams, config: &TrialConfig, seeds: TrialSeeds) -> Self {
+    pub(crate) fn draw(
+        pair: &PartPair,
+        params: &CellParams,
+        config: &TrialConfig,
+        seeds: TrialSeeds,
+    ) -> Self {
         let nominal = nominal_hole_pose(pair, params);
         let offset = draw_offset(seeds.offset(), &config.offset_range);
         Setup {
@@ -170,8 +176,9 @@ impl Setup {
     }
 
     /// The cell with the fixture at the true pose and the peg at its start: partially inserted in
-    /// the true hole (the paper's set-up), or above the nominal mouth for a search.
-    fn cell(
+    /// the true hole (the paper's set-up), or above the nominal mouth for a search; under the
+    /// observation gains of `config`.
+    pub(crate) fn cell(
         &self,
         pair: &PartPair,
         robot: &RobotModel,
@@ -206,10 +213,19 @@ impl Setup {
     ) -> Option<Iso> {
         match config.start {
             Start::Partial => {
-                session.command_pose(tcp_in_hole(&self.nominal, config.start_depth_m));
+                session.command_pose(self.believed_start(config));
                 Some(self.nominal)
             }
             Start::Above => search(session, &self.nominal, config, clearance_m),
+        }
+    }
+
+    /// Where the robot believes the peg starts: partially inserted in the nominal hole, or above
+    /// its mouth (where it also truly starts).
+    pub(crate) fn believed_start(&self, config: &TrialConfig) -> Iso {
+        match config.start {
+            Start::Partial => tcp_in_hole(&self.nominal, config.start_depth_m),
+            Start::Above => start_pose(&self.nominal, config),
         }
     }
 
@@ -331,7 +347,7 @@ fn outcome(faulted: bool, success: bool) -> &'static str {
 
 /// The true hole offset of a trial from its offset stream: `[x, y, z, roll, pitch, yaw]` (m,
 /// rad), uniform within `range` (paper V-A).
-pub fn draw_offset(seed: u64, range: &[f64; 6]) -> Pose6 {
+fn draw_offset(seed: u64, range: &[f64; 6]) -> Pose6 {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     Pose6(std::array::from_fn(|i| {
         if range[i] > 0.0 {
