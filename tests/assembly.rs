@@ -230,6 +230,10 @@ fn validate_passes_a_pair_whose_flange_seats_before_the_tip_reaches_the_floor() 
     let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{text}{}", stderr(&out));
+    assert!(
+        text.contains("(full insertion at -20.000 mm, flange on the block)"),
+        "{text}"
+    );
 }
 
 #[test]

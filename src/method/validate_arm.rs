@@ -302,15 +302,16 @@ fn at(x: f64, y: f64, z: f64) -> Iso {
 }
 
 /// The tip at the floor: the judge of the insertion cases.
-fn full_depth(depth_m: f64) -> Judge {
+fn full_depth(depth_m: f64, stop: &'static str) -> Judge {
     Box::new(move |s: &Settled| {
         let z = s.tip.translation.vector.z;
         (
             z <= -depth_m + 0.1e-3,
             format!(
-                "tip at z = {:.3} mm (floor at {:.3} mm)",
+                "tip at z = {:.3} mm (full insertion at {:.3} mm, {})",
                 z * 1e3,
-                -depth_m * 1e3
+                -depth_m * 1e3,
+                stop
             ),
         )
     })
@@ -360,11 +361,11 @@ fn cases(
                 switch: Some((UPRIGHT_S, config.insert_gains.clone())),
             },
             duration_s: insertion_s + UPRIGHT_S,
-            judge: full_depth(depth),
+            judge: full_depth(depth, pair.seat.describe()),
         }
     };
     let mut all = vec![
-        aligned_insertion(depth, insertion_s, config),
+        aligned_insertion((depth, pair.seat.describe()), insertion_s, config),
         lateral_press(pair, config),
         tilted_case("tilted_1deg", 1.0),
         tilted_case("tilted_3deg", 3.0),
@@ -393,7 +394,11 @@ fn descend_after(start: Iso, depth_m: f64, hold_s: f64) -> Box<dyn Fn(f64) -> Is
     })
 }
 
-fn aligned_insertion(depth: f64, insertion_s: f64, config: &TrialConfig) -> Case {
+fn aligned_insertion(
+    (depth, stop): (f64, &'static str),
+    insertion_s: f64,
+    config: &TrialConfig,
+) -> Case {
     let start = at(0.0, 0.0, -2e-3);
     Case {
         name: "aligned_insertion",
@@ -406,7 +411,7 @@ fn aligned_insertion(depth: f64, insertion_s: f64, config: &TrialConfig) -> Case
             switch: None,
         },
         duration_s: insertion_s,
-        judge: full_depth(depth),
+        judge: full_depth(depth, stop),
     }
 }
 

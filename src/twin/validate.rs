@@ -222,6 +222,7 @@ pub fn lift_until_free(
 
 fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec<Case> {
     let depth = pair.cavity_depth_m;
+    let stop = pair.seat.describe();
     let half_gap = pair.clearance_m / 2.0;
     let k = gains.stiffness_n_per_m;
     let press = 1e-3;
@@ -232,9 +233,10 @@ fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec
         (
             z <= -depth + 0.1e-3,
             format!(
-                "tip at z = {:.3} mm (floor at {:.3} mm)",
+                "tip at z = {:.3} mm (full insertion at {:.3} mm, {})",
                 z * 1e3,
-                -depth * 1e3
+                -depth * 1e3,
+                stop
             ),
         )
     };

@@ -5,13 +5,13 @@
 //! median over 0.5 mm slices). The exact penetration test (`twin::physics::penetration`) decides
 //! contact; the gaps are distances from points on the peg's surface to the hole's surface.
 
+pub use crate::twin::geometry::Seat;
 use crate::twin::geometry::solid::{ConvexPiece, P3, Solid};
 use crate::twin::physics::penetration::PenetrationProbe;
 use nalgebra::{Isometry3, Vector3};
 use parry3d::math::Vector as V3f;
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::TriMesh;
-use serde::Serialize;
 
 /// Step of the scan down the hole's axis, m (the first contact is then found by bisection).
 const SCAN_STEP_M: f64 = 0.25e-3;
@@ -27,18 +27,6 @@ const GAP_SLICE_M: f64 = 0.5e-3;
 const SAMPLE_SPACING_M: f64 = 0.5e-3;
 /// Most subdivisions of a face triangle for the points inside it.
 const INTERIOR_SUBDIVISIONS: usize = 8;
-
-/// Where the peg stops when pushed straight in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Seat {
-    /// The peg's tip reaches the cavity floor.
-    TipOnFloor,
-    /// A part of the peg above its tip (its flange, a shoulder) lands on the block.
-    FlangeOnBlock,
-    /// Nothing stops it within the hole: a through hole.
-    Through,
-}
 
 /// The fit as measured, SI units.
 #[derive(Clone, Debug)]

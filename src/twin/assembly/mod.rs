@@ -184,6 +184,7 @@ pub fn load(path: &Path) -> Result<Assembly> {
         peg: peg.solid,
         hole: hole.solid,
         cavity_depth_m: insertion_depth_m,
+        seat: fit.seat,
         peg_mass_kg: Some(peg_mass_kg),
         content_key: Some(content_key),
     };

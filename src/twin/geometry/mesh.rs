@@ -319,6 +319,7 @@ pub fn load_pair(
         peg: peg.solid,
         hole: hole.solid,
         cavity_depth_m,
+        seat: super::Seat::TipOnFloor,
         peg_mass_kg: None,
         content_key: None,
     };

@@ -35,6 +35,29 @@ pub const HOLE_ENTRY_CHAMFER_M: f64 = 0.3e-3;
 /// Smallest and largest clearance the built-ins are made for, metres (both included).
 pub const CLEARANCE_RANGE_M: (f64, f64) = (0.01e-3, 5e-3);
 
+/// Where the peg stops when pushed straight in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Seat {
+    /// The peg's tip reaches the cavity floor.
+    TipOnFloor,
+    /// A part of the peg above its tip (its flange, a shoulder) lands on the block.
+    FlangeOnBlock,
+    /// Nothing stops it within the hole: a through hole.
+    Through,
+}
+
+impl Seat {
+    /// What stops the peg at full insertion, in words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Seat::TipOnFloor => "tip on the floor",
+            Seat::FlangeOnBlock => "flange on the block",
+            Seat::Through => "a through hole's success depth",
+        }
+    }
+}
+
 /// A peg and its hole, ready for simulation.
 #[derive(Clone, Debug)]
 pub struct PartPair {
@@ -52,6 +75,8 @@ pub struct PartPair {
     /// For an assembly file's pair, the depth at which the peg is fully inserted: where it seats
     /// (tip on the floor or shoulder on the block), or the depth its file gives for a through hole.
     pub cavity_depth_m: f64,
+    /// What stops the peg at `cavity_depth_m` (the built-ins: its tip on the floor).
+    pub seat: Seat,
     /// The peg's mass, kg (an assembly's, from its volume or its file); `None`: the cell's
     /// `peg_mass_kg` (0.3 kg, the built-ins').
     pub peg_mass_kg: Option<f64>,
@@ -132,6 +157,7 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
         peg,
         hole,
         cavity_depth_m: CAVITY_DEPTH_M,
+        seat: Seat::TipOnFloor,
         peg_mass_kg: None,
         content_key: None,
     })
