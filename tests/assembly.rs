@@ -219,6 +219,11 @@ fn where_the_peg_seats_is_measured_flange_floor_or_through() {
     assert_eq!(through.report.seat, Seat::Through);
     assert!(!through.report.blind);
     assert!((through.pair.cavity_depth_m - 22e-3).abs() < 1e-12);
+    // validate leaves the floor press out: a through hole has no floor.
+    let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(!text.contains("floor_press"), "{text}");
+    assert!(text.contains("a through hole's success depth"), "{text}");
 }
 
 /// At 1 mm: at 0.4 mm this sharp-edged square pin's lateral press reads 21 um of exact

@@ -19,7 +19,7 @@ use crate::method::session::{Phase, Recorder, Session};
 use crate::pose::Iso;
 use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose};
 use crate::twin::control::{ControllerParams, ImpedanceGains};
-use crate::twin::geometry::PartPair;
+use crate::twin::geometry::{PartPair, Seat};
 use crate::twin::physics::PhysicsParams;
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::robot::RobotModel;
@@ -370,8 +370,11 @@ fn cases(
         tilted_case("tilted_1deg", 1.0),
         tilted_case("tilted_3deg", 3.0),
         rim_jam(pair, probe, base_t_hole, config),
-        floor_press(depth, config),
     ];
+    // A through hole has no floor to press.
+    if pair.seat != Seat::Through {
+        all.push(floor_press(depth, config));
+    }
     all.push(probing(config));
     all.push(sampling(sampler));
     all

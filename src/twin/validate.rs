@@ -6,7 +6,7 @@
 //! `twin::physics::penetration`), the contact force read from the solver against a momentum check
 //! (m dv/dt minus the applied forces), and the physics speed in steps per second.
 
-use crate::twin::geometry::PartPair;
+use crate::twin::geometry::{PartPair, Seat};
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::physics::{
     PhysicsParams, add_dynamic, add_fixed, contact_wrench, pose64, v32, v64,
@@ -220,6 +220,7 @@ pub fn lift_until_free(
     p
 }
 
+/// The cases for `pair` (a through hole has no floor to press: its floor press is left out).
 fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec<Case> {
     let depth = pair.cavity_depth_m;
     let stop = pair.seat.describe();
@@ -341,6 +342,9 @@ fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec
             }),
         },
     ]
+    .into_iter()
+    .filter(|c| c.name != "floor_press" || pair.seat != Seat::Through)
+    .collect()
 }
 
 fn run_case(
