@@ -53,8 +53,8 @@ class ManifoldFile:
 class Env:
     def __init__(
         self,
-        geometry: str,
-        clearance_mm: float,
+        geometry: Optional[str],
+        clearance_mm: Optional[float],
         start: str = "partial",
         control_hz: Optional[float] = None,
         episode_s: Optional[float] = None,
@@ -63,6 +63,7 @@ class Env:
         max_step_mm: Optional[float] = None,
         max_step_deg: Optional[float] = None,
         variable_stiffness: bool = False,
+        assembly: Optional[str] = None,
     ) -> None: ...
     @property
     def action_len(self) -> int: ...

@@ -36,7 +36,8 @@ machine; ``reset()`` draws the next trial seed from the environment's own genera
 
 from __future__ import annotations
 
-from typing import Any, Dict, Optional, Tuple
+import os
+from typing import Any, Dict, Optional, Tuple, Union
 
 import gymnasium as gym
 import numpy as np
@@ -64,16 +65,20 @@ class PegInHoleEnv(gym.Env):
         max_step_mm: Optional[float] = None,
         max_step_deg: Optional[float] = None,
         variable_stiffness: bool = False,
+        assembly: Optional[Union[str, os.PathLike]] = None,
     ) -> None:
         """Args: see the module docs; values left out take the defaults named there.
+        ``assembly``: an assembly file (your own peg and hole) instead of ``geometry`` and
+        ``clearance_mm``.
 
         Raises:
             ValueError: an argument is out of range or unknown (the command line's message).
         """
         super().__init__()
+        mine = assembly is not None
         self._env = _pegtwin.Env(
-            geometry,
-            float(clearance_mm),
+            None if mine else geometry,
+            None if mine else float(clearance_mm),
             start=start,
             control_hz=control_hz,
             episode_s=episode_s,
@@ -82,6 +87,7 @@ class PegInHoleEnv(gym.Env):
             max_step_mm=max_step_mm,
             max_step_deg=max_step_deg,
             variable_stiffness=variable_stiffness,
+            assembly=os.fspath(assembly) if mine else None,
         )
         self.control_hz: float = self._env.control_hz
         self.episode_s: float = self._env.episode_s

@@ -324,12 +324,12 @@ struct Env {
 #[pymethods]
 impl Env {
     #[new]
-    #[pyo3(signature = (geometry, clearance_mm, start="partial", control_hz=None, episode_s=None, offset_mm=None, offset_deg=None, max_step_mm=None, max_step_deg=None, variable_stiffness=false))]
+    #[pyo3(signature = (geometry, clearance_mm, start="partial", control_hz=None, episode_s=None, offset_mm=None, offset_deg=None, max_step_mm=None, max_step_deg=None, variable_stiffness=false, assembly=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
-        geometry: &str,
-        clearance_mm: f64,
+        geometry: Option<String>,
+        clearance_mm: Option<f64>,
         start: &str,
         control_hz: Option<f64>,
         episode_s: Option<f64>,
@@ -338,7 +338,9 @@ impl Env {
         max_step_mm: Option<f64>,
         max_step_deg: Option<f64>,
         variable_stiffness: bool,
+        assembly: Option<PathBuf>,
     ) -> PyResult<Self> {
+        let pair = pair_source(geometry, clearance_mm, assembly)?;
         let d = EnvConfig::default();
         let m = offset_mm.map_or(d.offset_range[0], |v| v * 1e-3);
         let a = offset_deg.map_or(d.offset_range[3], f64::to_radians);
@@ -352,7 +354,10 @@ impl Env {
             variable_stiffness,
             ..d
         };
-        let request = TrialRequest::new(geometry, clearance_mm);
+        let request = TrialRequest {
+            pair,
+            ..TrialRequest::new("cross", 0.5)
+        };
         let inner = py
             .detach(|| {
                 let (pair, _) = request.check()?;

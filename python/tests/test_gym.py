@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
 import pegtwin
+from conftest import run_cli
 from pegtwin.gym import PegInHoleEnv
 
 
@@ -45,6 +47,27 @@ def test_a_reset_sets_up_the_trial_of_that_seed() -> None:
     assert np.allclose(in_mm_deg, record["offset"], atol=1e-9)
     assert obs.shape == (12,) and obs.dtype == np.float32
     assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)  # the paper's partial insertion
+
+
+def test_an_assembly_file_is_an_environment_too(cli: Path, tmp_path: Path) -> None:
+    o = run_cli(
+        cli, "geometry", "export", "cross", "--clearance-mm", "0.5", "--out",
+        str(tmp_path / "cad"), "--convex-parts",
+    )
+    assert o.returncode == 0, o.stderr
+    assembly = tmp_path / "mine.toml"
+    assembly.write_text(
+        'name = "mine"\n[peg]\nmesh = "cad/peg_parts"\nunits = "mm"\nmass_kg = 0.3\n'
+        '[hole]\nmesh = "cad/hole_parts"\nunits = "mm"\n'
+    )
+    env = PegInHoleEnv(assembly=assembly, offset_mm=0, offset_deg=0)
+    _, info = env.reset(seed=0)
+    assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)
+    for _ in range(60):
+        _, _, terminated, truncated, info = env.step(np.array([0, 0, -1, 0, 0, 0.0]))
+        if terminated or truncated:
+            break
+    assert info["success"] and info["sim_fault"] is None
 
 
 def test_pushing_down_inserts_and_the_truth_is_in_info() -> None:
