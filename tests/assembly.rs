@@ -242,6 +242,43 @@ fn validate_passes_a_pair_whose_flange_seats_before_the_tip_reaches_the_floor() 
 }
 
 #[test]
+fn a_part_that_is_not_convex_is_refused_by_name_not_hulled() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = square_pair(dir.path(), (20.0, 0.4), true, true, "");
+    // The pin and the flange as one part: an L in section, its hull 5 mm off its surface.
+    let pin = ConvexPiece::slab(
+        &rect(-5e-3, -5e-3, 5e-3, 5e-3),
+        ZPlane::flat(0.0),
+        ZPlane::flat(20e-3),
+    );
+    let flange = ConvexPiece::slab(
+        &rect(-15e-3, -15e-3, 15e-3, 15e-3),
+        ZPlane::flat(20e-3),
+        ZPlane::flat(25e-3),
+    );
+    let (a, b) = (pin.to_mesh(), flange.to_mesh());
+    let n = a.vertices.len() as u32;
+    let both = BoundaryMesh {
+        vertices: a.vertices.iter().chain(&b.vertices).copied().collect(),
+        triangles: a
+            .triangles
+            .iter()
+            .copied()
+            .chain(b.triangles.iter().map(|t| t.map(|i| i + n)))
+            .collect(),
+    };
+    std::fs::remove_dir_all(dir.path().join("peg")).unwrap();
+    std::fs::create_dir(dir.path().join("peg")).unwrap();
+    both.write_stl_mm(&dir.path().join("peg/pin_and_flange.stl"))
+        .unwrap();
+    let err = load(&file).unwrap_err().to_string();
+    assert!(
+        err.contains("pin_and_flange.stl") && err.contains("it is not convex"),
+        "{err}"
+    );
+}
+
+#[test]
 fn bad_assembly_files_are_refused_by_field_with_exit_2() {
     let dir = tempfile::tempdir().unwrap();
     let good = square_pair(dir.path(), (20.0, 0.4), true, true, "");

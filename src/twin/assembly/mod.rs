@@ -48,6 +48,8 @@ const TIP_TOLERANCE_M: f64 = 1e-5;
 const PART_SIZE_RANGE_M: (f64, f64) = (1e-3, 1.0);
 /// A part standing further off its surface than this fraction of the clearance is refused.
 const MAX_DEVIATION_OF_CLEARANCE: f64 = 0.25;
+/// A part whose hull stands this far off its surface is not convex, whatever the clearance, m.
+const NON_CONVEX_M: f64 = 0.05e-3;
 
 /// An assembly file as written.
 #[derive(Debug, Deserialize)]
@@ -151,8 +153,12 @@ pub fn load(path: &Path) -> Result<Assembly> {
     let hole = load_part("hole", &file.hole, dir, file.clearance_mm)?;
     check_frames(&peg.solid, &hole.solid).map_err(|msg| Error::file(path, msg))?;
     let max_depth = -hole.solid.bounds().0.z + peg.solid.bounds().1.z;
-    let fit = measure_fit(&peg.solid, &hole.solid, 1e-3, (MIN_INSERTION_M, max_depth))
-        .map_err(|e| Error::file(path, fit_error(e)))?;
+    let fit =
+        measure_fit(&peg.solid, &hole.solid, 1e-3, (MIN_INSERTION_M, max_depth)).map_err(|e| {
+            // A hulled non-convex part is the likelier cause than the frames: say so first.
+            let cause = not_convex(&peg, &hole, NON_CONVEX_M, "").unwrap_or_default();
+            Error::file(path, format!("{cause}{}", fit_error(e)))
+        })?;
     check_fit(&fit, &peg, &hole).map_err(|msg| Error::file(path, msg))?;
     let insertion_depth_m =
         insertion_depth(&fit, &file.hole, &peg.solid).map_err(|msg| Error::file(path, msg))?;
@@ -508,19 +514,28 @@ fn fit_error(e: FitError) -> String {
 /// Every part must be convex to a quarter of the clearance.
 fn check_fit(fit: &Fit, peg: &LoadedPart, hole: &LoadedPart) -> std::result::Result<(), String> {
     let limit = MAX_DEVIATION_OF_CLEARANCE * 2.0 * fit.gap_min_m;
-    for (section, part) in [("peg", peg), ("hole", hole)] {
-        if let Some((file, dev)) = part.deviations.iter().find(|(_, d)| *d > limit) {
-            return Err(format!(
-                "{section}.mesh: {}: its collision shape stands {:.3} mm off its surface, more \
-                 than a quarter of the measured clearance ({:.3} mm): it is not convex; split it \
-                 into convex parts (CoACD, V-HACD)",
-                file.display(),
-                dev * 1e3,
-                2.0 * fit.gap_min_m * 1e3
-            ));
-        }
+    let measured = format!(
+        ", more than a quarter of the measured clearance ({:.3} mm)",
+        2.0 * fit.gap_min_m * 1e3
+    );
+    match not_convex(peg, hole, limit, &measured) {
+        Some(msg) => Err(msg.trim_end().to_string()),
+        None => Ok(()),
     }
-    Ok(())
+}
+
+/// The first part whose collision shape stands more than `limit_m` off its surface, as a
+/// message (`why` says what the limit is).
+fn not_convex(peg: &LoadedPart, hole: &LoadedPart, limit_m: f64, why: &str) -> Option<String> {
+    [("peg", peg), ("hole", hole)].iter().find_map(|(section, part)| {
+        let (file, dev) = part.deviations.iter().find(|(_, d)| *d > limit_m)?;
+        Some(format!(
+            "{section}.mesh: {}: its collision shape stands {:.3} mm off its surface{why}: it is \
+             not convex; split it into convex parts (CoACD, V-HACD). ",
+            file.display(),
+            dev * 1e3,
+        ))
+    })
 }
 
 /// The tip's depth at full insertion: where the peg seats, or the file's for a through hole.
