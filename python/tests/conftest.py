@@ -49,3 +49,20 @@ def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "[manifold]\npoints = 1000\nepisodes = 2\nepisode_s = 3.0\nseed = 4\n"
     )
     return path
+
+
+@pytest.fixture(scope="session")
+def cross_assembly(cli: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An assembly file of the cross's exported convex parts at 0.5 mm (the built-ins' peg mass)."""
+    folder = tmp_path_factory.mktemp("assembly")
+    o = run_cli(
+        cli, "geometry", "export", "cross", "--clearance-mm", "0.5", "--out",
+        str(folder / "cad"), "--convex-parts",
+    )
+    assert o.returncode == 0, o.stderr
+    path = folder / "mine.toml"
+    path.write_text(
+        'name = "mine"\n[peg]\nmesh = "cad/peg_parts"\nunits = "mm"\nmass_kg = 0.3\n'
+        '[hole]\nmesh = "cad/hole_parts"\nunits = "mm"\n'
+    )
+    return path

@@ -33,17 +33,8 @@ def test_a_direct_trial_is_the_command_lines_record(cli: Path) -> None:
     assert record["method"] == "direct" and record["seed"] == 3
 
 
-def test_an_assembly_trial_is_the_command_lines_record(cli: Path, tmp_path: Path) -> None:
-    o = run_cli(
-        cli, "geometry", "export", "cross", "--clearance-mm", "0.5", "--out",
-        str(tmp_path / "cad"), "--convex-parts",
-    )
-    assert o.returncode == 0, o.stderr
-    assembly = tmp_path / "mine.toml"
-    assembly.write_text(
-        'name = "mine"\n[peg]\nmesh = "cad/peg_parts"\nunits = "mm"\n'
-        '[hole]\nmesh = "cad/hole_parts"\nunits = "mm"\n'
-    )
+def test_an_assembly_trial_is_the_command_lines_record(cli: Path, cross_assembly: Path) -> None:
+    assembly = cross_assembly
     record = pegtwin.trial(assembly=assembly, seed=3, method="direct", t_obs_s=2)
     expected = cli_trial(
         cli, "--assembly", str(assembly), "--seed", "3", "--method", "direct", "--t-obs", "2"

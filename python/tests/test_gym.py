@@ -10,7 +10,6 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import pegtwin
-from conftest import run_cli
 from pegtwin.gym import PegInHoleEnv
 
 
@@ -49,17 +48,8 @@ def test_a_reset_sets_up_the_trial_of_that_seed() -> None:
     assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)  # the paper's partial insertion
 
 
-def test_an_assembly_file_is_an_environment_too(cli: Path, tmp_path: Path) -> None:
-    o = run_cli(
-        cli, "geometry", "export", "cross", "--clearance-mm", "0.5", "--out",
-        str(tmp_path / "cad"), "--convex-parts",
-    )
-    assert o.returncode == 0, o.stderr
-    assembly = tmp_path / "mine.toml"
-    assembly.write_text(
-        'name = "mine"\n[peg]\nmesh = "cad/peg_parts"\nunits = "mm"\nmass_kg = 0.3\n'
-        '[hole]\nmesh = "cad/hole_parts"\nunits = "mm"\n'
-    )
+def test_an_assembly_file_is_an_environment_too(cross_assembly: Path) -> None:
+    assembly = cross_assembly
     env = PegInHoleEnv(assembly=assembly, offset_mm=0, offset_deg=0)
     _, info = env.reset(seed=0)
     assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)
