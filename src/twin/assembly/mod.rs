@@ -29,7 +29,8 @@ pub mod mjcf;
 use crate::error::{Error, Result};
 use crate::pose::rotation_rpy;
 use crate::twin::geometry::mesh::{MeshUnits, convex_part, load_solid, read_mesh_scaled};
-use crate::twin::geometry::solid::{ConvexPiece, P3, Solid};
+use crate::twin::geometry::planar::rect;
+use crate::twin::geometry::solid::{ConvexPiece, Solid, ZPlane};
 use crate::twin::geometry::{self, PartPair};
 use measure::{Fit, FitError, Seat, measure_fit};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
@@ -410,22 +411,23 @@ fn mjcf_solid(
     Ok((solid, deviations))
 }
 
-/// A box of half-extents `h` (m) placed at `place`.
+/// A box of half-extents `h` (m) placed at `place`: the slab over its rectangle, moved.
 fn box_piece(
     h: &nalgebra::Vector3<f64>,
     place: &Isometry3<f64>,
     file: &Path,
     body: &str,
 ) -> Result<ConvexPiece> {
-    let corners: Vec<P3> = (0..8)
-        .map(|k| {
-            let sign = |bit: usize| if k & bit == 0 { -1.0 } else { 1.0 };
-            place * P3::new(sign(1) * h.x, sign(2) * h.y, sign(4) * h.z)
-        })
-        .collect();
-    ConvexPiece::from_points(&corners)
-        .filter(|p| p.collider_shape().is_some())
-        .ok_or_else(|| Error::file(file, format!("body {body}: a box geom with no volume")))
+    if !h.iter().all(|v| *v > 0.0) {
+        let msg = format!("body {body}: a box geom of half-extents {h:?}: expected all above 0");
+        return Err(Error::file(file, msg));
+    }
+    let slab = ConvexPiece::slab(
+        &rect(-h.x, -h.y, h.x, h.y),
+        ZPlane::flat(-h.z),
+        ZPlane::flat(h.z),
+    );
+    Ok(slab.transformed(place))
 }
 
 fn is_identity(e: &PartEntry) -> bool {
