@@ -200,7 +200,11 @@ impl Scenario {
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
-        let dir = path.parent().unwrap_or(Path::new("."));
+        // A bare file name's parent is "": the working folder.
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
         Self::parse_in(&text, dir).map_err(|e| match e {
             Error::Input(msg) => Error::file(path, msg),
             other => other,
