@@ -3,7 +3,7 @@
 
 use pegtwin::twin::physics::PhysicsParams;
 use pegtwin::twin::physics::arm::Arm;
-use pegtwin::twin::robot::urdf::{IIWA7_URDF, IIWA14_URDF, load};
+use pegtwin::twin::robot::urdf::{IIWA7_URDF, IIWA14_URDF, UR5E_URDF, load};
 use pegtwin::twin::robot::{GRAVITY_UPRIGHT, Iso, RobotModel};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
 use std::path::Path;
@@ -58,6 +58,15 @@ fn gravity_compensation_holds_both_arms_within_10_micrometres_for_5_s() {
         println!("{}: drift {:.2e} m", robot.name, drift);
         assert!(drift < 1e-5, "{}: drift {drift} m", robot.name);
     }
+}
+
+#[test]
+fn gravity_compensation_holds_the_six_joint_ur5e_within_10_micrometres_for_5_s() {
+    let robot = model(UR5E_URDF);
+    // Elbow up, tool pointing down.
+    let q = [0.0, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0];
+    let drift = gravity_hold_drift(&robot, &q, 5.0);
+    assert!(drift < 1e-5, "drift {drift} m");
 }
 
 #[test]

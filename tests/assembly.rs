@@ -309,7 +309,6 @@ fn bad_assembly_files_are_refused_by_field_with_exit_2() {
             format!("{text}frame_rpy_deg = [180, 0, 0]\n"),
             "hole.frame_rpy_deg",
         ),
-        (format!("{text}[robot]\nurdf = \"arm.urdf\"\n"), "[robot]"),
         (
             text.replace("name = \"square\"", "name = \"a/b\""),
             "name = \"a/b\"",

@@ -3,7 +3,7 @@
 //! gravity torques and effective masses (5.3), and the loader's rules and errors.
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
-use pegtwin::twin::robot::urdf::{IIWA7_URDF, IIWA14_URDF, load};
+use pegtwin::twin::robot::urdf::{IIWA7_URDF, IIWA14_URDF, UR5E_URDF, load};
 use pegtwin::twin::robot::{GRAVITY_UPRIGHT, RobotModel};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 use std::path::Path;
@@ -118,6 +118,60 @@ fn fk_of_both_arms_matches_the_dh_table_at_random_configurations() {
                 "{} q {q:?}",
                 robot.name
             );
+        }
+    }
+}
+
+/// The UR5e's DH frames 1 to 6 by the maker's standard DH table (a, d, alpha; theta = q).
+fn ur5e_dh_frames(q: &[f64]) -> Vec<Isometry3<f64>> {
+    let a = [0.0, -0.425, -0.3922, 0.0, 0.0, 0.0];
+    let d = [0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996];
+    let alpha = [FRAC_PI_2, 0.0, 0.0, FRAC_PI_2, -FRAC_PI_2, 0.0];
+    let mut t = Isometry3::identity();
+    (0..6)
+        .map(|i| {
+            t =
+                t * Isometry3::from_parts(
+                    Translation3::new(0.0, 0.0, d[i]),
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q[i]),
+                ) * Isometry3::from_parts(
+                    Translation3::new(a[i], 0.0, 0.0),
+                    UnitQuaternion::from_axis_angle(&Vector3::x_axis(), alpha[i]),
+                );
+            t
+        })
+        .collect()
+}
+
+#[test]
+fn the_ur5e_file_is_its_dh_table() {
+    let robot = load(Path::new(UR5E_URDF), &[]).unwrap().model;
+    assert_eq!((robot.dof(), robot.flange_name.as_str()), (6, "tool0"));
+    let mass: f64 = robot.links.iter().map(|l| l.inertial.mass_kg).sum();
+    assert!((mass - 17.7).abs() < 0.01, "{mass} kg");
+    // The published centres of mass, in DH frame i.
+    let coms = [
+        [0.0, -0.02561, 0.00193],
+        [0.2125, 0.0, 0.11336],
+        [0.15, 0.0, 0.0265],
+        [0.0, -0.0018, 0.01634],
+        [0.0, 0.0018, 0.01634],
+        [0.0, 0.0, -0.001159],
+    ];
+    for q in random_qs(50) {
+        let q = &q[..6];
+        let dh = ur5e_dh_frames(q);
+        let f = robot.flange_pose(q);
+        assert!(
+            (f.translation.vector - dh[5].translation.vector).norm() < 1e-9,
+            "q {q:?}"
+        );
+        assert!(f.rotation.angle_to(&dh[5].rotation) < 1e-9, "q {q:?}");
+        let k = robot.kinematics(q);
+        for (i, c) in coms.iter().enumerate() {
+            let com = k.frames[i] * robot.links[i].inertial.com;
+            let published = dh[i] * nalgebra::Point3::from(*c);
+            assert!((com - published).norm() < 1e-9, "link {} q {q:?}", i + 1);
         }
     }
 }

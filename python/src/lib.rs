@@ -361,7 +361,7 @@ impl Env {
         let inner = py
             .detach(|| {
                 let (pair, _) = request.check()?;
-                let robot = pegtwin::twin::robot::urdf::iiwa14()?;
+                let (robot, _) = request.pair.robot()?.load()?;
                 PegEnv::new(pair, robot, config)
             })
             .map_err(py_err)?;

@@ -171,10 +171,10 @@ pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
         .map_err(|e| Error::Input(format!("cannot start the worker threads: {e}")))
 }
 
-/// The pairs, the robot and the reference manifolds the given trials need.
+/// The pairs, their robots and the reference manifolds the given trials need.
 pub struct Prepared {
-    pub robot: RobotModel,
     pairs: BTreeMap<(String, u64), PartPair>,
+    robots: BTreeMap<(String, u64), RobotModel>,
     manifolds: BTreeMap<(String, u64), Manifold>,
 }
 
@@ -183,10 +183,14 @@ fn pair_key(cell: &Condition) -> (String, u64) {
 }
 
 impl Prepared {
-    /// The pair of `cell` and its reference manifold (when its method registers).
-    pub fn inputs(&self, cell: &Condition) -> (&PartPair, Option<&Manifold>) {
+    /// The pair of `cell`, its robot and its reference manifold (when its method registers).
+    pub fn inputs(&self, cell: &Condition) -> (&PartPair, &RobotModel, Option<&Manifold>) {
         let key = pair_key(cell);
-        (&self.pairs[&key], self.manifolds.get(&key))
+        (
+            &self.pairs[&key],
+            &self.robots[&key],
+            self.manifolds.get(&key),
+        )
     }
 }
 
@@ -196,21 +200,22 @@ pub fn prepare(
     trials: &[TrialSpec],
     options: &RunOptions,
 ) -> Result<Prepared> {
-    let robot = crate::twin::robot::urdf::iiwa14()?;
     let cells = scenario.cells();
     let params = scenario.cell_params();
     let mut pairs = BTreeMap::new();
+    let mut robots = BTreeMap::new();
     let mut manifolds = BTreeMap::new();
     for spec in trials {
         let cell = &cells[spec.cell];
         let key = pair_key(cell);
         if !pairs.contains_key(&key) {
             pairs.insert(key.clone(), scenario.pair(cell)?);
+            robots.insert(key.clone(), scenario.robot(cell).load()?.0);
         }
         if cell.method == Method::Manifold && !manifolds.contains_key(&key) {
             let m = cache::resolve(
                 &pairs[&key],
-                &robot,
+                &robots[&key],
                 &scenario.manifold,
                 &params,
                 Some(&options.cache_dir),
@@ -220,8 +225,8 @@ pub fn prepare(
         }
     }
     Ok(Prepared {
-        robot,
         pairs,
+        robots,
         manifolds,
     })
 }
@@ -320,10 +325,10 @@ pub fn run_one_recorded(
     recorder: Option<&mut dyn Recorder>,
 ) -> Result<TrialResult> {
     let cell = &scenario.cells()[spec.cell];
-    let (pair, manifold) = prepared.inputs(cell);
+    let (pair, robot, manifold) = prepared.inputs(cell);
     run_trial(
         pair,
-        &prepared.robot,
+        robot,
         &scenario.cell_params(),
         &scenario.trial_config(cell),
         manifold,
@@ -386,8 +391,8 @@ pub fn campaign(
 ) -> Result<CampaignRun> {
     let replays = ReplayWriter::new(out, options.replays);
     let outcome = campaign_with(scenario, out, options, run, &|s, p, spec| {
-        let (pair, manifold) = p.inputs(&s.cells()[spec.cell]);
-        replays.record(spec, (pair, &p.robot, manifold), |recorder| {
+        let (pair, robot, manifold) = p.inputs(&s.cells()[spec.cell]);
+        replays.record(spec, (pair, robot, manifold), |recorder| {
             run_one_recorded(s, p, spec, recorder)
         })
     });

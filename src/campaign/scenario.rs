@@ -19,6 +19,7 @@ use crate::twin::assembly;
 use crate::twin::cell::CellParams;
 use crate::twin::control::ImpedanceGains;
 use crate::twin::geometry::{self, PartPair};
+use crate::twin::robot::spec::RobotSpec;
 use crate::twin::sensing::SensorParams;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -47,9 +48,9 @@ pub struct Scenario {
     /// clearance measured from its meshes, under its `name`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub assemblies: Vec<PathBuf>,
-    /// The assemblies' pairs, loaded with the scenario (in the order of `assemblies`).
+    /// The assemblies' pairs and robots, loaded with the scenario (in the order of `assemblies`).
     #[serde(skip)]
-    pub assembly_pairs: Vec<PartPair>,
+    pub loaded_assemblies: Vec<assembly::Assembly>,
     /// The folder the assembly paths are relative to (the scenario file's), absolute.
     #[serde(skip)]
     pub assembly_dir: PathBuf,
@@ -235,21 +236,33 @@ impl Scenario {
     pub fn load_assemblies(&mut self, dir: &Path) -> Result<()> {
         self.assembly_dir = std::path::absolute(dir)
             .map_err(|e| Error::file(dir, format!("cannot resolve the folder: {e}")))?;
-        self.assembly_pairs = self
+        self.loaded_assemblies = self
             .assemblies
             .iter()
-            .map(|a| Ok(assembly::load(&self.assembly_dir.join(a))?.pair))
+            .map(|a| assembly::load(&self.assembly_dir.join(a)))
             .collect::<Result<_>>()?;
         Ok(())
     }
 
     /// The pair a cell runs: a built-in at the cell's clearance, or an assembly by its name.
     pub fn pair(&self, cell: &Condition) -> Result<PartPair> {
-        if let Some(pair) = self.assembly_pairs.iter().find(|p| p.name == cell.geometry) {
-            return Ok(pair.clone());
+        if let Some(a) = self.assembly_of(cell) {
+            return Ok(a.pair.clone());
         }
         let builtin = geometry::builtin_by_name(&cell.geometry)?;
         geometry::build_builtin(builtin, cell.clearance_mm * 1e-3)
+    }
+
+    /// The robot a cell runs on: its assembly's, else the built-in iiwa 14.
+    pub fn robot(&self, cell: &Condition) -> RobotSpec {
+        self.assembly_of(cell)
+            .map_or_else(RobotSpec::default, |a| a.robot.clone())
+    }
+
+    fn assembly_of(&self, cell: &Condition) -> Option<&assembly::Assembly> {
+        self.loaded_assemblies
+            .iter()
+            .find(|a| a.pair.name == cell.geometry)
     }
 
     /// Checks every field, naming the first that is wrong.
@@ -335,9 +348,10 @@ impl Scenario {
     /// An assembly's name labels its cells and seeds its trials: it may not be a built-in's or
     /// another assembly's.
     fn ensure_assembly_names(&self) -> Result<()> {
-        for (k, pair) in self.assembly_pairs.iter().enumerate() {
+        let pairs: Vec<&PartPair> = self.loaded_assemblies.iter().map(|a| &a.pair).collect();
+        for (k, pair) in pairs.iter().enumerate() {
             let taken = geometry::builtin_by_name(&pair.name).is_ok()
-                || self.assembly_pairs[..k].iter().any(|p| p.name == pair.name);
+                || pairs[..k].iter().any(|p| p.name == pair.name);
             if taken {
                 return Err(Error::Input(format!(
                     "assemblies: {}: its name \"{}\" is already taken (a built-in or another \
@@ -382,9 +396,9 @@ impl Scenario {
             .iter()
             .flat_map(|g| self.clearances_mm.iter().map(move |&c| (g.clone(), c)));
         let assemblies = self
-            .assembly_pairs
+            .loaded_assemblies
             .iter()
-            .map(|p| (p.name.clone(), p.clearance_mm()));
+            .map(|a| (a.pair.name.clone(), a.pair.clearance_mm()));
         let mut cells = Vec::new();
         for (geometry, clearance_mm) in builtins.chain(assemblies) {
             for &method in &[Method::Manifold, Method::Direct] {
@@ -448,9 +462,10 @@ impl Scenario {
         let mut s = self.clone();
         s.name.clear();
         let mut json = serde_json::to_string(&s).expect("scenario serialises");
-        // The assemblies' contents, not only their paths: editing a mesh is a new campaign.
-        for pair in &self.assembly_pairs {
-            json.push_str(pair.content_key.as_deref().unwrap_or_default());
+        // The assemblies' contents, not only their paths: editing a mesh or the robot's URDF
+        // is a new campaign (an assembly's content key covers its robot).
+        for a in &self.loaded_assemblies {
+            json.push_str(a.pair.content_key.as_deref().unwrap_or_default());
         }
         format!("{:08x}", crc32fast::hash(json.as_bytes()))
     }

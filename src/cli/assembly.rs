@@ -81,6 +81,19 @@ fn print_report(r: &AssemblyReport) {
         "peg mass {:.4} kg; the peg starts clear of the hole (checked from 1 mm above the mouth to 5 mm in)",
         r.peg_mass_kg
     );
+    let q: Vec<String> = r
+        .robot
+        .start_q_deg
+        .iter()
+        .map(|v| format!("{v:.1}"))
+        .collect();
+    println!(
+        "robot {}: {} joints, flange {}; reaches the start over the hole at q = [{}] deg",
+        r.robot.source,
+        r.robot.joints,
+        r.robot.flange,
+        q.join(", ")
+    );
     for w in &r.warnings {
         println!("warning: {w}");
     }

@@ -7,6 +7,8 @@ use pegtwin::error::{Error, Result};
 use pegtwin::twin::assembly::PairSource;
 use pegtwin::twin::geometry::mesh::load_pair;
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
+use pegtwin::twin::robot::RobotModel;
+use pegtwin::twin::robot::spec::RobotSpec;
 use std::path::PathBuf;
 
 mod assembly;
@@ -163,8 +165,8 @@ pub struct PairArgs {
 pub struct ValidateArgs {
     #[command(flatten)]
     pub pair: PairArgs,
-    /// Drive the peg on the iiwa 14's flange through the controller at the trials' gains (and
-    /// the manifold sampler's), instead of the free peg.
+    /// Drive the peg on the robot's flange (the iiwa 14, or the assembly's `[robot]`) through the
+    /// controller at the trials' gains (and the manifold sampler's), instead of the free peg.
     #[arg(long)]
     pub arm: bool,
     /// Print the report as JSON.
@@ -173,6 +175,15 @@ pub struct ValidateArgs {
 }
 
 impl PairArgs {
+    /// The robot that holds the peg: the assembly's, else the built-in iiwa 14.
+    pub fn robot(&self) -> Result<RobotModel> {
+        let spec = match &self.assembly {
+            Some(path) => PairSource::Assembly(path.clone()).robot()?,
+            None => RobotSpec::default(),
+        };
+        Ok(spec.load()?.0)
+    }
+
     /// Builds the pair, printing mesh warnings to stderr.
     pub fn build(&self) -> Result<PartPair> {
         if let Some(path) = &self.assembly {

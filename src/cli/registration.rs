@@ -298,11 +298,12 @@ pub struct BuildArgs {
 }
 
 fn build(args: BuildArgs) -> Result<()> {
-    let (pair, warnings) = args.pair.source().load()?;
+    let source = args.pair.source();
+    let (pair, warnings) = source.load()?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
-    let robot = pegtwin::twin::robot::urdf::iiwa14()?;
+    let (robot, _) = source.robot()?.load()?;
     let config = ManifoldSpec {
         episodes: args.episodes,
         episode_s: args.episode_s,

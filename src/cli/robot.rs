@@ -6,6 +6,7 @@ use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::control::ImpedanceGains;
 use pegtwin::twin::diagnostics::{AxisStiffness, PushTest, measure_stiffness};
 use pegtwin::twin::geometry::{self, build_builtin, builtin_by_name};
+use pegtwin::twin::robot::spec::RobotSpec;
 use pegtwin::twin::robot::urdf::{iiwa14, load};
 use pegtwin::twin::robot::{GRAVITY_UPRIGHT, RobotModel};
 use serde_json::json;
@@ -51,8 +52,11 @@ pub enum RobotAction {
 #[derive(Args)]
 pub struct RobotArgs {
     /// URDF of a serial-chain robot (default: the shipped iiwa 14).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "builtin")]
     pub urdf: Option<PathBuf>,
+    /// A built-in robot: iiwa14, iiwa7 or ur5e.
+    #[arg(long)]
+    pub builtin: Option<String>,
     /// Folders searched for `package://` meshes (repeatable).
     #[arg(long)]
     pub package_path: Vec<PathBuf>,
@@ -61,6 +65,9 @@ pub struct RobotArgs {
 impl RobotArgs {
     /// Loads the robot, printing the loader's warnings to stderr.
     pub fn load(&self) -> Result<RobotModel> {
+        if let Some(name) = &self.builtin {
+            return Ok(RobotSpec::builtin(name).load()?.0);
+        }
         let Some(path) = &self.urdf else {
             return iiwa14();
         };

@@ -14,7 +14,7 @@ use serde::Serialize;
 pub fn validate_command(args: ValidateArgs) -> Result<i32> {
     let pair = args.pair.build()?;
     let passed = if args.arm {
-        let robot = pegtwin::twin::robot::urdf::iiwa14()?;
+        let robot = args.pair.robot()?;
         let report = validate_arm(
             &pair,
             &robot,

@@ -94,7 +94,7 @@ impl TrialRequest {
         (pair, config): (PartPair, TrialConfig),
         progress: &dyn BuildProgress,
     ) -> Result<PreparedTrial> {
-        let robot = crate::twin::robot::urdf::iiwa14()?;
+        let (robot, _warnings) = self.pair.robot()?.load()?;
         let params = CellParams::default();
         let manifold = match self.method {
             Method::Manifold => Some(self.reference_manifold(&pair, &robot, &params, progress)?),

@@ -22,17 +22,6 @@ use nalgebra::{DVector, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rapier3d::prelude::{ColliderBuilder, ColliderHandle, PhysicsWorld};
 use serde::{Deserialize, Serialize};
 
-/// A joint configuration with the tool pointing down in front of the robot (docs/sources.md, 1).
-pub const TOOL_DOWN_Q: [f64; 7] = [
-    0.0,
-    std::f64::consts::FRAC_PI_4,
-    0.0,
-    -std::f64::consts::FRAC_PI_2,
-    0.0,
-    std::f64::consts::FRAC_PI_4,
-    0.0,
-];
-
 /// Solver iterations (substeps) of the arm cell. rapier rebuilds the multibody's mass matrix in
 /// every substep; two substeps instead of the free peg's four make the arm cell 1.35 x faster,
 /// and the cell's tests hold with them (insertion at 0.1 mm with at most 5 um penetration, stall
@@ -258,7 +247,7 @@ impl Cell {
         let friction = params.physics.friction;
         let tcp_on_flange = flange_t_tcp(pair);
         let model = with_peg(robot, pair, params)?;
-        let q0 = model.inverse_kinematics(start_tcp, &TOOL_DOWN_Q)?;
+        let q0 = model.start_configuration(start_tcp)?;
 
         let mut world = params.physics.new_world();
         add_table(&mut world);
@@ -531,7 +520,8 @@ fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
 
 /// The robot model carrying the peg as its tool: the peg's mass properties (its convex pieces at
 /// the pair's peg mass, else the peg mass of `params`) on the flange at `flange_t_tcp`.
-fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Result<RobotModel> {
+/// The robot with the peg of `pair` on its flange as its tool (mass from the pair or `params`).
+pub fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Result<RobotModel> {
     let tcp_on_flange = flange_t_tcp(pair);
     let peg_props = compound_collider(&pair.peg, params.physics.friction)
         .mass(pair.peg_mass_kg.unwrap_or(params.peg_mass_kg) as f32)

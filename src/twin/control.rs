@@ -446,8 +446,12 @@ fn impedance_torque(
     let f_base = to_base * f_tcp;
     let f = DVector::from_column_slice(f_base.as_slice());
     let tau_task = jac.transpose() * &f;
-    // Null space: joint-space spring-damper projected with I - J^T Lambda J M^-1.
+    // Null space: joint-space spring-damper projected with I - J^T Lambda J M^-1. A 6-joint arm
+    // has none (the projector is zero up to rounding), so it gets the task torque alone.
     let n = q.len();
+    if n <= 6 {
+        return tau_task;
+    }
     let mut tau0 = DVector::zeros(n);
     for i in 0..n {
         let d = 2.0 * gains.null_damping_ratio * (gains.null_stiffness * m[(i, i)]).sqrt();

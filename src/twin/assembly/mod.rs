@@ -25,6 +25,8 @@
 
 pub mod measure;
 pub mod mjcf;
+mod robot;
+pub use robot::RobotReport;
 
 use crate::error::{Error, Result};
 use crate::pose::rotation_rpy;
@@ -32,6 +34,7 @@ use crate::twin::geometry::mesh::{MeshUnits, convex_part, load_solid, read_mesh_
 use crate::twin::geometry::planar::rect;
 use crate::twin::geometry::solid::{ConvexPiece, Solid, ZPlane};
 use crate::twin::geometry::{self, PartPair};
+use crate::twin::robot::spec::RobotSpec;
 use measure::{Fit, FitError, Seat, measure_fit};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
@@ -61,7 +64,7 @@ struct AssemblyFile {
     clearance_mm: Option<f64>,
     peg: PartEntry,
     hole: PartEntry,
-    robot: Option<toml::Table>,
+    robot: Option<robot::RobotEntry>,
 }
 
 /// `[peg]` or `[hole]` as written.
@@ -133,14 +136,31 @@ pub struct AssemblyReport {
     /// The tip's depth at full insertion, mm: success is within `success_mm` of it.
     pub insertion_depth_mm: f64,
     pub peg_mass_kg: f64,
+    /// The robot that holds the peg, and where it starts.
+    pub robot: RobotReport,
     pub warnings: Vec<String>,
 }
 
-/// A loaded assembly: the pair every command runs and what was measured of it.
+/// A loaded assembly: the pair every command runs, the robot that holds the peg and what was
+/// measured of them.
 #[derive(Clone, Debug)]
 pub struct Assembly {
     pub pair: PartPair,
+    pub robot: RobotSpec,
     pub report: AssemblyReport,
+}
+
+/// The robot of the assembly file at `path` (the built-in iiwa 14 when it has no `[robot]`),
+/// read without loading the parts.
+pub fn robot_of(path: &Path) -> Result<RobotSpec> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let file = parse(&text).map_err(|msg| Error::file(path, msg))?;
+    robot::spec(
+        file.robot.as_ref(),
+        path.parent().unwrap_or(Path::new(".")),
+        path,
+    )
 }
 
 /// Reads an assembly file, loads its parts into their frames, measures the fit and checks it.
@@ -150,6 +170,7 @@ pub fn load(path: &Path) -> Result<Assembly> {
     let file = parse(&text).map_err(|msg| Error::file(path, msg))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     check_entries(&file).map_err(|msg| Error::file(path, msg))?;
+    let robot = robot::spec(file.robot.as_ref(), dir, path)?;
     let peg = load_part("peg", &file.peg, dir, file.clearance_mm)?;
     let hole = load_part("hole", &file.hole, dir, file.clearance_mm)?;
     check_frames(&peg.solid, &hole.solid).map_err(|msg| Error::file(path, msg))?;
@@ -165,11 +186,48 @@ pub fn load(path: &Path) -> Result<Assembly> {
         insertion_depth(&fit, &file.hole, &peg.solid).map_err(|msg| Error::file(path, msg))?;
     let peg_mass_kg = peg_mass(&file.peg, &peg.solid);
     let clearance_m = round_to_tenth_um(2.0 * fit.gap_min_m);
-    let content_key = content_key(&peg.solid, &hole.solid, peg_mass_kg, insertion_depth_m);
-    let report = AssemblyReport {
-        name: file.name.clone(),
+    let mut pair = PartPair {
+        name: file.name,
+        clearance_m,
+        chord_error_m: 0.0,
+        content_key: Some(content_key(
+            &peg.solid,
+            &hole.solid,
+            peg_mass_kg,
+            insertion_depth_m,
+        )),
+        peg: peg.solid.clone(),
+        hole: hole.solid.clone(),
+        cavity_depth_m: insertion_depth_m,
+        seat: fit.seat,
+        peg_mass_kg: Some(peg_mass_kg),
+    };
+    let robot_check = robot::check_reach(&robot, &pair, path)?;
+    if let (Some(key), Some(robot_key)) = (pair.content_key.as_mut(), &robot_check.key) {
+        // The manifold is sampled by the robot: another robot is another cached file.
+        *key = format!("{key}-{robot_key}");
+    }
+    let report = report(path, &fit, &pair, (peg, hole), robot_check);
+    Ok(Assembly {
+        pair,
+        robot,
+        report,
+    })
+}
+
+/// What `assembly check` prints of a loaded `pair`, its parts, its fit and its robot.
+fn report(
+    path: &Path,
+    fit: &Fit,
+    pair: &PartPair,
+    (peg, hole): (LoadedPart, LoadedPart),
+    robot: robot::RobotCheck,
+) -> AssemblyReport {
+    let warnings = [peg.warnings, hole.warnings, robot.warnings].concat();
+    AssemblyReport {
+        name: pair.name.clone(),
         file: path.to_path_buf(),
-        clearance_min_mm: (clearance_m * 1e7).round() / 1e4,
+        clearance_min_mm: (pair.clearance_m * 1e7).round() / 1e4,
         clearance_median_mm: 2.0 * fit.gap_median_m * 1e3,
         gap_per_side_min_mm: fit.gap_min_m * 1e3,
         gap_per_side_median_mm: fit.gap_median_m * 1e3,
@@ -178,24 +236,13 @@ pub fn load(path: &Path) -> Result<Assembly> {
         seat: fit.seat,
         cavity_depth_mm: fit.cavity_depth_m.map(|d| d * 1e3),
         blind: fit.cavity_depth_m.is_some(),
-        insertion_depth_mm: insertion_depth_m * 1e3,
-        peg_mass_kg,
-        warnings: peg.warnings.iter().chain(&hole.warnings).cloned().collect(),
+        insertion_depth_mm: pair.cavity_depth_m * 1e3,
+        peg_mass_kg: pair.peg_mass_kg.unwrap_or_default(),
+        robot: robot.report,
+        warnings,
         peg: peg.report,
         hole: hole.report,
-    };
-    let pair = PartPair {
-        name: file.name,
-        clearance_m,
-        chord_error_m: 0.0,
-        peg: peg.solid,
-        hole: hole.solid,
-        cavity_depth_m: insertion_depth_m,
-        seat: fit.seat,
-        peg_mass_kg: Some(peg_mass_kg),
-        content_key: Some(content_key),
-    };
-    Ok(Assembly { pair, report })
+    }
 }
 
 /// The file's TOML, with the line of the first error.
@@ -209,7 +256,7 @@ fn parse(text: &str) -> std::result::Result<AssemblyFile, String> {
     })
 }
 
-/// Checks the fields that need no mesh: the name, the robot, which fields each part may have.
+/// Checks the fields that need no mesh: the name, which fields each part may have.
 fn check_entries(file: &AssemblyFile) -> std::result::Result<(), String> {
     let name_ok = !file.name.is_empty()
         && file
@@ -221,13 +268,6 @@ fn check_entries(file: &AssemblyFile) -> std::result::Result<(), String> {
             "name = {:?}: expected letters, digits, '-', '_' or '.' (it names cached files)",
             file.name
         ));
-    }
-    if file.robot.is_some() {
-        return Err(
-            "[robot]: your own robot is not supported yet; remove the section and the \
-                    trials use the built-in iiwa 14"
-                .into(),
-        );
     }
     let builtin = file.peg.builtin.is_some() || file.hole.builtin.is_some();
     match file.clearance_mm {
@@ -628,6 +668,14 @@ impl PairSource {
                 let assembly = load(path)?;
                 Ok((assembly.pair, assembly.report.warnings))
             }
+        }
+    }
+
+    /// The robot that holds the peg: the assembly file's, else the built-in iiwa 14.
+    pub fn robot(&self) -> Result<RobotSpec> {
+        match self {
+            PairSource::Builtin { .. } => Ok(RobotSpec::default()),
+            PairSource::Assembly(path) => robot_of(path),
         }
     }
 }

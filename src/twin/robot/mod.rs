@@ -7,6 +7,7 @@
 //! The simulator's multibody ([`crate::twin::physics::arm`]) is built from the same model, so the controller's
 //! model and the simulated plant agree except where a test perturbs them on purpose.
 
+pub mod spec;
 pub mod urdf;
 
 use crate::error::{Error, Result};
@@ -167,6 +168,13 @@ pub struct RobotModel {
     /// Reflected rotor inertia per joint, kg m^2 (not in URDF; see [`default_armature`]).
     pub armature: Vec<f64>,
     pub tool: Option<Tool>,
+    /// A joint configuration near the cell's start pose (tool pointing down in front of the
+    /// robot), where [`RobotModel::start_configuration`] starts its inverse kinematics; `None`:
+    /// searched for.
+    pub ik_seed: Option<Vec<f64>>,
+    /// Checksum of what the robot is made from (URDF text, flange, tool offset, seed), for cache
+    /// file names; `None` for the default robot, the built-in iiwa 14.
+    pub content_key: Option<String>,
 }
 
 /// Default reflected rotor inertia, kg m^2 per joint. KUKA publishes none (docs/sources.md, 2);
@@ -423,6 +431,99 @@ impl RobotModel {
             }
         }
         Err(unreachable_pose(target))
+    }
+}
+
+/// Seeds the start search draws (after the zero configuration) when a robot has no IK seed.
+const START_SEARCH_SEEDS: usize = 64;
+/// How high above the table (z = 0 of the base) every joint but the first must stand at the
+/// start, m.
+const MIN_JOINT_HEIGHT_M: f64 = 0.02;
+
+impl RobotModel {
+    /// Joint positions that put the TCP at `target` (`base_T_tcp`) to start a trial: inverse
+    /// kinematics from the robot's [`RobotModel::ik_seed`]; without one, from the zero
+    /// configuration and [`START_SEARCH_SEEDS`] seeds drawn within the joint limits (clipped to
+    /// +-pi) by a fixed-seed generator, keeping the solution with every joint but the first above
+    /// the table and the largest manipulability `sqrt(det(J J^T))` (furthest from a singularity).
+    /// Deterministic: the same robot and target give the same configuration.
+    pub fn start_configuration(&self, target: &Iso) -> Result<Vec<f64>> {
+        if let Some(seed) = &self.ik_seed {
+            return self.inverse_kinematics(target, seed);
+        }
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for seed in self.search_seeds() {
+            let Ok(q) = self.inverse_kinematics(target, &seed) else {
+                continue;
+            };
+            let k = self.kinematics(&q);
+            let low = k.frames.iter().skip(1);
+            if low.clone().any(|f| f.translation.z < MIN_JOINT_HEIGHT_M) {
+                continue;
+            }
+            let score = self.start_score(&q, &k);
+            if best.as_ref().is_none_or(|(b, _)| score > *b) {
+                best = Some((score, q));
+            }
+        }
+        best.map(|(_, q)| q).ok_or_else(|| {
+            let p = target.translation.vector;
+            Error::Input(format!(
+                "robot '{}' cannot reach the start pose at ({:.4}, {:.4}, {:.4}) m (base frame) \
+                 with the peg pointing down and every joint above the table, from {} seeds; \
+                 move the hole closer (the cell's hole_xy_m) or check the robot's tool offset",
+                self.name,
+                p.x,
+                p.y,
+                p.z,
+                START_SEARCH_SEEDS + 1
+            ))
+        })
+    }
+
+    /// How good a start `q` is: its manipulability `sqrt(det(J J^T))` (furthest from a
+    /// singularity), scaled down as any joint comes within a quarter of its half-range of a limit.
+    fn start_score(&self, q: &[f64], k: &Kinematics) -> f64 {
+        let jac = self.tcp_jacobian(k);
+        let manipulability = (&jac * jac.transpose()).determinant().max(0.0).sqrt();
+        let margin = self
+            .joints
+            .iter()
+            .zip(q)
+            .map(|(j, &v)| {
+                let half = 0.5 * (j.upper - j.lower).min(2.0 * std::f64::consts::TAU);
+                ((v - j.lower).min(j.upper - v) / half).min(0.25) / 0.25
+            })
+            .fold(1.0, f64::min);
+        manipulability * margin
+    }
+
+    /// The zero configuration (clamped into the limits), then seeds drawn uniformly within the
+    /// limits clipped to +-pi.
+    fn search_seeds(&self) -> Vec<Vec<f64>> {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+        let range = |j: &Joint| {
+            let lim = std::f64::consts::PI;
+            (j.lower.max(-lim), j.upper.min(lim))
+        };
+        let zero = self
+            .joints
+            .iter()
+            .map(|j| 0.0f64.clamp(j.lower, j.upper))
+            .collect();
+        let drawn = (0..START_SEARCH_SEEDS).map(|_| {
+            self.joints
+                .iter()
+                .map(|j| {
+                    let (lo, hi) = range(j);
+                    lo + (hi - lo) * rng.random::<f64>()
+                })
+                .collect()
+        });
+        let mut seeds = vec![zero];
+        seeds.extend(drawn);
+        seeds
     }
 }
 

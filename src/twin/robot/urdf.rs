@@ -23,11 +23,17 @@ use std::path::{Path, PathBuf};
 pub const IIWA14_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/iiwa14/iiwa14.urdf");
 /// The iiwa 7 variant shipped with pegtwin (placeholder inertials, see the file).
 pub const IIWA7_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/iiwa7/iiwa7.urdf");
-/// The iiwa 14's URDF embedded in the binary (it has no mesh files), so that a binary copied or
-/// installed elsewhere, or the Python package, needs no source tree.
-const IIWA14_URDF_TEXT: &str = include_str!("../../../assets/iiwa14/iiwa14.urdf");
-/// The name the embedded iiwa 14 goes by in messages.
-pub const BUILTIN_IIWA14: &str = "iiwa14.urdf (built in)";
+/// The UR5e shipped with pegtwin (written from UR's published DH table, see the file).
+pub const UR5E_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/ur5e/ur5e.urdf");
+/// The built-in robots' URDFs, embedded in the binary (they have no mesh files), so that a binary
+/// copied or installed elsewhere, or the Python package, needs no source tree: name, text.
+const BUILTIN_URDFS: [(&str, &str); 3] = [
+    ("iiwa14", include_str!("../../../assets/iiwa14/iiwa14.urdf")),
+    ("iiwa7", include_str!("../../../assets/iiwa7/iiwa7.urdf")),
+    ("ur5e", include_str!("../../../assets/ur5e/ur5e.urdf")),
+];
+/// The built-in robots' names.
+pub const BUILTIN_ROBOTS: [&str; 3] = ["iiwa14", "iiwa7", "ur5e"];
 
 /// A loaded model and the warnings its loading raised.
 pub struct Loaded {
@@ -38,13 +44,28 @@ pub struct Loaded {
 /// Loads `path`, resolving `package://` URIs against `search_path` (folders that hold packages, or
 /// are packages themselves).
 pub fn load(path: &Path, search_path: &[PathBuf]) -> Result<Loaded> {
+    load_with_flange(path, search_path, None)
+}
+
+/// As [`load`], with the flange frame at link `flange` (the chain's last moving link or a link
+/// fixed to it; `None`: the last link of the chain).
+pub fn load_with_flange(
+    path: &Path,
+    search_path: &[PathBuf],
+    flange: Option<&str>,
+) -> Result<Loaded> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
-    load_text(&text, path, search_path)
+    load_text(&text, path, search_path, flange)
 }
 
 /// Loads URDF `text` read from `path` (named in messages; meshes resolve from its folder).
-fn load_text(text: &str, path: &Path, search_path: &[PathBuf]) -> Result<Loaded> {
+pub fn load_text(
+    text: &str,
+    path: &Path,
+    search_path: &[PathBuf],
+    flange: Option<&str>,
+) -> Result<Loaded> {
     check_xml(text).map_err(|msg| Error::file(path, format!("not a valid URDF: {msg}")))?;
     let robot = urdf_rs::read_from_string(text)
         .map_err(|e| Error::file(path, format!("not a valid URDF: {e}")))?;
@@ -54,12 +75,50 @@ fn load_text(text: &str, path: &Path, search_path: &[PathBuf]) -> Result<Loaded>
         dir,
         search_path,
     };
-    build(&robot, &resolver).map_err(|msg| Error::file(path, msg))
+    build(&robot, &resolver, flange).map_err(|msg| Error::file(path, msg))
 }
 
-/// Loads the shipped iiwa 14 (embedded in the binary).
+/// Loads the shipped iiwa 14 (embedded in the binary), with its tool-down IK seed.
 pub fn iiwa14() -> Result<RobotModel> {
-    Ok(load_text(IIWA14_URDF_TEXT, Path::new(BUILTIN_IIWA14), &[])?.model)
+    Ok(builtin("iiwa14", None)?.model)
+}
+
+/// The iiwa 14's tool-down configuration in front of the robot (docs/sources.md, 1), rad: its
+/// IK seed for the start pose.
+pub const IIWA14_TOOL_DOWN_Q: [f64; 7] = [
+    0.0,
+    std::f64::consts::FRAC_PI_4,
+    0.0,
+    -std::f64::consts::FRAC_PI_2,
+    0.0,
+    std::f64::consts::FRAC_PI_4,
+    0.0,
+];
+
+/// Loads a built-in robot ([`BUILTIN_ROBOTS`]) with its flange at link `flange` (`None`: the
+/// file's). The iiwa 14 starts its inverse kinematics from [`IIWA14_TOOL_DOWN_Q`]; the others
+/// search (`RobotModel::start_configuration`).
+pub fn builtin(name: &str, flange: Option<&str>) -> Result<Loaded> {
+    let shown = format!("{name}.urdf (built in)");
+    let mut loaded = load_text(builtin_text(name)?, Path::new(&shown), &[], flange)?;
+    if name == "iiwa14" {
+        loaded.model.ik_seed = Some(IIWA14_TOOL_DOWN_Q.to_vec());
+    }
+    Ok(loaded)
+}
+
+/// The URDF text of a built-in robot ([`BUILTIN_ROBOTS`]).
+pub fn builtin_text(name: &str) -> Result<&'static str> {
+    BUILTIN_URDFS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, text)| *text)
+        .ok_or_else(|| {
+            Error::Input(format!(
+                "robot '{name}': expected one of the built-in robots {}",
+                BUILTIN_ROBOTS.join(", ")
+            ))
+        })
 }
 
 /// Numeric attributes of the URDF elements pegtwin reads: how many numbers each holds and the
@@ -181,7 +240,11 @@ impl Resolver<'_> {
     }
 }
 
-fn build(robot: &urdf_rs::Robot, res: &Resolver) -> std::result::Result<Loaded, String> {
+fn build(
+    robot: &urdf_rs::Robot,
+    res: &Resolver,
+    flange: Option<&str>,
+) -> std::result::Result<Loaded, String> {
     let links: HashMap<&str, &urdf_rs::Link> =
         robot.links.iter().map(|l| (l.name.as_str(), l)).collect();
     if links.len() != robot.links.len() {
@@ -202,8 +265,11 @@ fn build(robot: &urdf_rs::Robot, res: &Resolver) -> std::result::Result<Loaded, 
         res,
         &mut warnings,
     )?;
-    let chain = walk_chain(root, &children, &links, &mut base, res, &mut warnings)?;
+    let mut chain = walk_chain(root, &children, &links, &mut base, res, &mut warnings)?;
     check_connected(robot, &chain.visited)?;
+    if let Some(name) = flange {
+        chain.move_flange_to(name)?;
+    }
     check_moving_masses(&chain.links)?;
     let n = chain.joints.len();
     Ok(Loaded {
@@ -216,6 +282,8 @@ fn build(robot: &urdf_rs::Robot, res: &Resolver) -> std::result::Result<Loaded, 
             last_t_flange: chain.tip_offset,
             armature: default_armature(n),
             tool: None,
+            ik_seed: None,
+            content_key: None,
         },
         warnings,
     })
@@ -284,6 +352,29 @@ struct Chain<'a> {
     tip_offset: nalgebra::Isometry3<f64>,
     /// Every link reached, the root included.
     visited: HashSet<&'a str>,
+    /// The last moving link and the links fixed to it, with their frames in its frame.
+    tip_links: Vec<(&'a str, nalgebra::Isometry3<f64>)>,
+}
+
+impl Chain<'_> {
+    /// Puts the flange frame at link `name`: the last moving link or one fixed to it.
+    fn move_flange_to(&mut self, name: &str) -> std::result::Result<(), String> {
+        if let Some((tip, offset)) = self.tip_links.iter().find(|(n, _)| *n == name) {
+            self.tip = tip;
+            self.tip_offset = *offset;
+            return Ok(());
+        }
+        let tips: Vec<&str> = self.tip_links.iter().map(|(n, _)| *n).collect();
+        let why = if self.visited.contains(name) {
+            "is not at the chain's tip (moving joints follow it)"
+        } else {
+            "is not a link of this URDF"
+        };
+        Err(format!(
+            "flange link '{name}' {why}; expected one of {}",
+            tips.join(", ")
+        ))
+    }
 }
 
 /// Walks from the root along the one child joint of each link, folding fixed joints into the link
@@ -302,6 +393,7 @@ fn walk_chain<'a>(
         tip: root,
         tip_offset: nalgebra::Isometry3::identity(),
         visited: HashSet::from([root]),
+        tip_links: Vec::new(),
     };
     loop {
         let joint = match children.get(chain.tip).map(Vec::as_slice).unwrap_or(&[]) {
@@ -322,6 +414,7 @@ fn walk_chain<'a>(
         match &joint.joint_type {
             urdf_rs::JointType::Fixed => {
                 chain.tip_offset = origin;
+                chain.tip_links.push((joint.child.link.as_str(), origin));
                 let target = chain.links.last_mut().unwrap_or(&mut *base);
                 add_link_body(target, child, &origin, res, warnings)?;
             }
@@ -330,6 +423,7 @@ fn walk_chain<'a>(
             | urdf_rs::JointType::Prismatic => {
                 chain.joints.push(movable_joint(joint, origin)?);
                 chain.tip_offset = nalgebra::Isometry3::identity();
+                chain.tip_links = vec![(joint.child.link.as_str(), chain.tip_offset)];
                 let mut link = Link {
                     name: child.name.clone(),
                     inertial: Inertial::ZERO,

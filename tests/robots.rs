@@ -1,0 +1,144 @@
+//! Your own robot: an assembly file's `[robot]` (a built-in other than the iiwa 14, or a URDF with
+//! its flange link and tool offset) holds the peg in every trial; bad robots are refused by field.
+
+mod common;
+
+use common::{pegtwin, stderr};
+use pegtwin::method::config::Method;
+use pegtwin::method::request::TrialRequest;
+use pegtwin::twin::assembly::{PairSource, load};
+use std::path::{Path, PathBuf};
+
+/// An assembly of the built-in cross at 0.5 mm with `robot` as its `[robot]` section.
+fn cross_with(dir: &Path, file: &str, robot: &str) -> PathBuf {
+    let path = dir.join(file);
+    let text = format!(
+        "name = \"cross-arm\"\nclearance_mm = 0.5\n[peg]\nbuiltin = \"cross\"\n[hole]\n\
+         builtin = \"cross\"\n{robot}"
+    );
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// A serial arm of `n` revolute joints about z, each link `length_m` up from the last, its tip
+/// link `tip`, and optionally a second branch at the base.
+fn arm_urdf(n: usize, length_m: f64, branch: bool) -> String {
+    let link = |name: &str| {
+        format!(
+            "<link name=\"{name}\"><inertial><origin xyz=\"0 0 0.05\"/><mass value=\"1\"/>\
+             <inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>\
+             </inertial></link>\n"
+        )
+    };
+    let mut text = String::from("<robot name=\"small\">\n");
+    text += &link("l0");
+    for i in 1..=n {
+        text += &link(&format!("l{i}"));
+        let axis = if i % 2 == 0 { "0 1 0" } else { "0 0 1" };
+        text += &format!(
+            "<joint name=\"j{i}\" type=\"revolute\"><parent link=\"l{}\"/><child link=\"l{i}\"/>\
+             <origin xyz=\"0 0 {length_m}\"/><axis xyz=\"{axis}\"/>\
+             <limit lower=\"-3\" upper=\"3\" effort=\"100\" velocity=\"2\"/></joint>\n",
+            i - 1
+        );
+    }
+    if branch {
+        text += &link("side");
+        text += "<joint name=\"js\" type=\"revolute\"><parent link=\"l0\"/><child link=\"side\"/>\
+                 <axis xyz=\"0 0 1\"/><limit lower=\"-1\" upper=\"1\" effort=\"10\" velocity=\"1\"/>\
+                 </joint>\n";
+    }
+    text + "</robot>\n"
+}
+
+#[test]
+fn a_flange_link_and_tool_offset_put_the_peg_where_the_default_flange_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let default = load(&cross_with(dir.path(), "a.toml", "")).unwrap();
+    // The iiwa 14's flange is 45 mm beyond link 7: name link 7 and offset the tool by 45 mm.
+    let moved = load(&cross_with(
+        dir.path(),
+        "b.toml",
+        "[robot]\nbuiltin = \"iiwa14\"\nflange_link = \"iiwa_link_7\"\ntool_xyz_mm = [0, 0, 45]\n",
+    ))
+    .unwrap();
+    assert_eq!(moved.report.robot.flange, "iiwa_link_7");
+    for (a, b) in default
+        .report
+        .robot
+        .start_q_deg
+        .iter()
+        .zip(&moved.report.robot.start_q_deg)
+    {
+        assert!((a - b).abs() < 1e-6, "{:?}", moved.report.robot.start_q_deg);
+    }
+    // Another robot (even the same arm said differently) is another manifold in the cache.
+    assert_ne!(default.pair.content_key, moved.pair.content_key);
+}
+
+#[test]
+fn the_six_joint_ur5e_holds_the_peg_through_a_trial() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = cross_with(dir.path(), "ur.toml", "[robot]\nbuiltin = \"ur5e\"\n");
+    let assembly = load(&file).unwrap();
+    assert_eq!(assembly.report.robot.joints, 6);
+    let request = TrialRequest {
+        pair: PairSource::Assembly(file),
+        method: Method::Direct,
+        t_obs_s: 2.0,
+        seed: 3,
+        ..TrialRequest::new("cross", 0.5)
+    };
+    let r = request.run(&()).unwrap();
+    assert!(r.fault.is_none(), "{:?}", r.fault);
+    // The trial starts 3 mm in; the direct insertion pushes the peg further down.
+    let depth_mm = r.final_depth_mm.unwrap();
+    assert!(depth_mm > 5.0, "{depth_mm} mm");
+}
+
+#[test]
+fn bad_robots_are_refused_naming_the_file_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("branch.urdf"), arm_urdf(6, 0.2, true)).unwrap();
+    std::fs::write(dir.path().join("short.urdf"), arm_urdf(6, 0.05, false)).unwrap();
+    let cases = [
+        (
+            "builtin = \"ur10\"\n",
+            "expected one of iiwa14, iiwa7, ur5e",
+        ),
+        ("urdf = \"branch.urdf\"\n", "only serial chains"),
+        ("urdf = \"missing.urdf\"\n", "cannot read"),
+        ("urdf = \"short.urdf\"\n", "cannot reach the start pose"),
+        (
+            "builtin = \"ur5e\"\nflange_link = \"tool9\"\n",
+            "flange link 'tool9' is not a link",
+        ),
+        (
+            "builtin = \"ur5e\"\nflange_link = \"forearm_link\"\n",
+            "is not at the chain's tip",
+        ),
+        (
+            "builtin = \"ur5e\"\npackage_paths = [\".\"]\n",
+            "package_paths: only with urdf",
+        ),
+        ("builtin = \"ur5e\"\nstart_q_deg = [0, 0]\n", "start_q_deg"),
+        (
+            "builtin = \"ur5e\"\ntool_xyz_mm = [0, 0, 5000]\n",
+            "tool_xyz_mm",
+        ),
+        ("builtin = \"ur5e\"\ngripper = 1\n", "gripper"),
+    ];
+    for (k, (robot, expected)) in cases.iter().enumerate() {
+        let file = cross_with(
+            dir.path(),
+            &format!("bad{k}.toml"),
+            &format!("[robot]\n{robot}"),
+        );
+        let out = pegtwin(&["assembly", "check", file.to_str().unwrap()]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{robot}: {err}");
+        assert!(err.contains(expected), "{robot}: {err}");
+        let named = err.contains(&format!("bad{k}.toml")) || err.contains(".urdf");
+        assert!(named, "{robot}: the file is not named: {err}");
+    }
+}
