@@ -77,6 +77,40 @@ fn a_flange_link_and_tool_offset_put_the_peg_where_the_default_flange_does() {
 }
 
 #[test]
+fn a_urdf_that_ends_short_of_its_flange_takes_a_tool_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    // The UR5e as a user's file without its tool0 frame: it ends at wrist 3, 99.6 mm short.
+    let text = pegtwin::twin::robot::urdf::builtin_text("ur5e").unwrap();
+    let cut = text.find("<joint name=\"flange_joint\"").unwrap();
+    let short = text[..cut].replace("<link name=\"tool0\"/>", "") + "</robot>\n";
+    std::fs::create_dir_all(dir.path().join("robots")).unwrap();
+    std::fs::write(dir.path().join("robots/arm.urdf"), short).unwrap();
+    let builtin = load(&cross_with(
+        dir.path(),
+        "a.toml",
+        "[robot]\nbuiltin = \"ur5e\"\n",
+    ))
+    .unwrap();
+    let user = load(&cross_with(
+        dir.path(),
+        "b.toml",
+        "[robot]\nurdf = \"robots/arm.urdf\"\npackage_paths = [\"robots\"]\n\
+         flange_link = \"wrist_3_link\"\ntool_xyz_mm = [0, 0, 99.6]\n",
+    ))
+    .unwrap();
+    assert_eq!(user.report.robot.flange, "wrist_3_link");
+    assert!(user.report.robot.source.ends_with("arm.urdf"));
+    let (a, b) = (
+        &builtin.report.robot.start_q_deg,
+        &user.report.robot.start_q_deg,
+    );
+    assert!(
+        a.iter().zip(b).all(|(a, b)| (a - b).abs() < 1e-6),
+        "{a:?} vs {b:?}"
+    );
+}
+
+#[test]
 fn the_six_joint_ur5e_holds_the_peg_through_a_trial() {
     let dir = tempfile::tempdir().unwrap();
     let file = cross_with(dir.path(), "ur.toml", "[robot]\nbuiltin = \"ur5e\"\n");
