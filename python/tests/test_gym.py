@@ -60,6 +60,22 @@ def test_an_assembly_file_is_an_environment_too(cross_assembly: Path) -> None:
     assert info["success"] and info["sim_fault"] is None
 
 
+def test_the_six_joint_ur5e_of_an_assembly_drives_the_environment(tmp_path: Path) -> None:
+    assembly = tmp_path / "ur.toml"
+    assembly.write_text(
+        'name = "cross-ur5e"\nclearance_mm = 0.5\n[peg]\nbuiltin = "cross"\n'
+        '[hole]\nbuiltin = "cross"\n[robot]\nbuiltin = "ur5e"\n'
+    )
+    env = PegInHoleEnv(assembly=assembly, offset_mm=0, offset_deg=0)
+    _, info = env.reset(seed=0)
+    assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)
+    for _ in range(60):
+        _, _, terminated, truncated, info = env.step(np.array([0, 0, -1, 0, 0, 0.0]))
+        if terminated or truncated:
+            break
+    assert info["success"] and info["sim_fault"] is None
+
+
 def test_pushing_down_inserts_and_the_truth_is_in_info() -> None:
     env = PegInHoleEnv(offset_mm=0, offset_deg=0)
     env.reset(seed=0)
