@@ -131,6 +131,17 @@ fn the_six_joint_ur5e_holds_the_peg_through_a_trial() {
 }
 
 #[test]
+fn the_six_joint_ur5e_and_the_iiwa7_show_the_commanded_cartesian_stiffness() {
+    for robot in ["ur5e", "iiwa7"] {
+        let out = pegtwin(&["robot", "stiffness", "--builtin", robot]);
+        let text = String::from_utf8_lossy(&out.stdout);
+        // Exit 0: every axis within 5 % of the commanded stiffness (no null space for the UR5e).
+        assert!(out.status.success(), "{robot}: {text}{}", stderr(&out));
+        assert!(text.contains("PASS"), "{text}");
+    }
+}
+
+#[test]
 fn bad_robots_are_refused_naming_the_file_and_field() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("branch.urdf"), arm_urdf(6, 0.2, true)).unwrap();
