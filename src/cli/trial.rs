@@ -6,18 +6,13 @@ use super::progress::Bars;
 use clap::Args;
 use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
-use pegtwin::method::request::TrialRequest;
+use pegtwin::method::request::{TrialRequest, default_offsets_mm_deg};
 use pegtwin::method::session::{Recorder, trace_csv};
 use pegtwin::method::trial::TrialResult;
 use pegtwin::replay::Replay;
 use std::path::PathBuf;
 
 /// The library's default offset half-ranges, mm and deg (the paper's U(-5, 5)).
-fn default_offsets() -> (f64, f64) {
-    let r = TrialConfig::default().offset_range;
-    (r[0] * 1e3, r[3].to_degrees())
-}
-
 #[derive(Args)]
 pub struct TrialArgs {
     #[command(flatten)]
@@ -34,10 +29,10 @@ pub struct TrialArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Half-range of the hole's position offset, mm (U(-r, r) on x, y, z).
-    #[arg(long, default_value_t = default_offsets().0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = default_offsets_mm_deg().0, allow_negative_numbers = true)]
     pub offset_mm: f64,
     /// Half-range of the hole's orientation offset, deg (U(-r, r) on roll, pitch, yaw).
-    #[arg(long, default_value_t = default_offsets().1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = default_offsets_mm_deg().1, allow_negative_numbers = true)]
     pub offset_deg: f64,
     /// Reference manifold file (default: the cache, built on demand).
     #[arg(long)]

@@ -43,6 +43,7 @@ impl TrialRequest {
     /// insertion, the library's default observation time and offsets (paper V-A), seed 1.
     pub fn new(geometry: &str, clearance_mm: f64) -> Self {
         let defaults = TrialConfig::default();
+        let (offset_mm, offset_deg) = default_offsets_mm_deg();
         TrialRequest {
             pair: PairSource::Builtin {
                 name: geometry.into(),
@@ -52,8 +53,8 @@ impl TrialRequest {
             method: Method::Manifold,
             start: Start::Partial,
             seed: 1,
-            offset_mm: defaults.offset_range[0] * 1e3,
-            offset_deg: defaults.offset_range[3].to_degrees(),
+            offset_mm,
+            offset_deg,
             manifold: None,
             cache_dir: None,
         }
@@ -176,6 +177,12 @@ impl PreparedTrial {
             recorder,
         )
     }
+}
+
+/// The default half-ranges of the hole's offset as people type them: mm, deg (paper V-A).
+pub fn default_offsets_mm_deg() -> (f64, f64) {
+    let r = TrialConfig::default().offset_range;
+    (r[0] * 1e3, r[3].to_degrees())
 }
 
 /// A method by its name in records and flags (`manifold`, `direct`).

@@ -227,7 +227,7 @@ fn report(
     AssemblyReport {
         name: pair.name.clone(),
         file: path.to_path_buf(),
-        clearance_min_mm: (pair.clearance_m * 1e7).round() / 1e4,
+        clearance_min_mm: pair.clearance_mm(),
         clearance_median_mm: 2.0 * fit.gap_median_m * 1e3,
         gap_per_side_min_mm: fit.gap_min_m * 1e3,
         gap_per_side_median_mm: fit.gap_median_m * 1e3,
@@ -345,14 +345,63 @@ fn check_entry(section: &str, e: &PartEntry) -> std::result::Result<(), String> 
     Ok(())
 }
 
-/// Loads a part (mesh or built-in) and moves it into its frame.
+/// A part as read from its source, before it is moved into its frame.
+struct ReadPart {
+    solid: Solid,
+    /// The mesh path, `builtin NAME` or the MJCF file and body.
+    source: String,
+    /// Each input file and its deviation, m.
+    deviations: Vec<(PathBuf, f64)>,
+    warnings: Vec<String>,
+}
+
+/// Loads a part (mesh, built-in or MJCF body) and moves it into its frame.
 fn load_part(
     section: &str,
     e: &PartEntry,
     dir: &Path,
     clearance_mm: Option<f64>,
 ) -> Result<LoadedPart> {
-    let (solid, source, deviations, warnings) = match (&e.mesh, &e.builtin) {
+    let read = read_part(section, e, dir, clearance_mm)?;
+    let solid = Solid {
+        pieces: move_into_frame(&read.solid.pieces, e),
+        boundary: read
+            .solid
+            .boundary
+            .filter(|_| e.builtin.is_some() && is_identity(e)),
+    };
+    let (lo, hi) = solid.bounds();
+    let size = hi - lo;
+    check_size(section, e, size.amax())?;
+    let report = PartReport {
+        source: read.source,
+        pieces: solid.pieces.len(),
+        max_deviation_mm: read.deviations.iter().map(|d| d.1).fold(0.0, f64::max) * 1e3,
+        size_mm: [size.x * 1e3, size.y * 1e3, size.z * 1e3],
+        volume_mm3: solid.pieces_volume_m3() * 1e9,
+    };
+    Ok(LoadedPart {
+        solid,
+        report,
+        deviations: read.deviations,
+        warnings: read.warnings,
+    })
+}
+
+/// Reads a part from its mesh, built-in or MJCF body, in the source's own coordinates.
+fn read_part(
+    section: &str,
+    e: &PartEntry,
+    dir: &Path,
+    clearance_mm: Option<f64>,
+) -> Result<ReadPart> {
+    let part = |solid, source, deviations, warnings| ReadPart {
+        solid,
+        source,
+        deviations,
+        warnings,
+    };
+    Ok(match (&e.mesh, &e.builtin) {
         (Some(mesh), _) => {
             let path = dir.join(mesh);
             let units = e.units.expect("checked: a mesh has units");
@@ -361,7 +410,7 @@ fn load_part(
                 other => other,
             })?;
             let source = path.display().to_string();
-            (
+            part(
                 loaded.solid,
                 source,
                 loaded.part_deviations,
@@ -378,37 +427,15 @@ fn load_part(
             } else {
                 pair.hole
             };
-            (solid, format!("builtin {name}"), Vec::new(), Vec::new())
+            part(solid, format!("builtin {name}"), Vec::new(), Vec::new())
         }
         (None, None) => {
             let file = dir.join(e.mjcf.as_ref().expect("checked: one source"));
             let body = e.body.as_deref().expect("checked: mjcf comes with body");
             let (solid, deviations) = mjcf_solid(&file, body, e.units)?;
             let source = format!("{} body {body}", file.display());
-            (solid, source, deviations, Vec::new())
+            part(solid, source, deviations, Vec::new())
         }
-    };
-    let solid = Solid {
-        pieces: move_into_frame(&solid.pieces, e),
-        boundary: solid
-            .boundary
-            .filter(|_| e.builtin.is_some() && is_identity(e)),
-    };
-    let (lo, hi) = solid.bounds();
-    let size = hi - lo;
-    check_size(section, e, size.amax())?;
-    let report = PartReport {
-        source,
-        pieces: solid.pieces.len(),
-        max_deviation_mm: deviations.iter().map(|d| d.1).fold(0.0, f64::max) * 1e3,
-        size_mm: [size.x * 1e3, size.y * 1e3, size.z * 1e3],
-        volume_mm3: solid.pieces.iter().map(ConvexPiece::volume).sum::<f64>() * 1e9,
-    };
-    Ok(LoadedPart {
-        solid,
-        report,
-        deviations,
-        warnings,
     })
 }
 
@@ -621,8 +648,7 @@ fn peg_mass(e: &PartEntry, peg: &Solid) -> f64 {
     if e.builtin.is_some() && e.density_kg_per_m3.is_none() {
         return BUILTIN_PEG_MASS_KG;
     }
-    let volume: f64 = peg.pieces.iter().map(ConvexPiece::volume).sum();
-    volume * e.density_kg_per_m3.unwrap_or(DEFAULT_DENSITY_KG_PER_M3)
+    peg.pieces_volume_m3() * e.density_kg_per_m3.unwrap_or(DEFAULT_DENSITY_KG_PER_M3)
 }
 
 fn round_to_tenth_um(v: f64) -> f64 {

@@ -248,6 +248,11 @@ pub struct Solid {
 }
 
 impl Solid {
+    /// The summed volume of the pieces, m^3 (where pieces overlap, the overlap counts twice).
+    pub fn pieces_volume_m3(&self) -> f64 {
+        self.pieces.iter().map(ConvexPiece::volume).sum()
+    }
+
     /// Bounds over all pieces (min, max).
     pub fn bounds(&self) -> (P3, P3) {
         self.pieces.iter().map(|p| p.bounds()).fold(

@@ -470,8 +470,9 @@ impl RobotModel {
             let p = target.translation.vector;
             Error::Input(format!(
                 "robot '{}' cannot reach the start pose at ({:.4}, {:.4}, {:.4}) m (base frame) \
-                 with the peg pointing down and every joint above the table, from {} seeds; \
-                 move the hole closer (the cell's hole_xy_m) or check the robot's tool offset",
+                 with the peg pointing down and every joint above the table, from {} seeds \
+                 (the cell stands the hole 0.55 m in front of the base); check the robot's \
+                 tool offset, or give a start_q_deg near a pose that reaches it",
                 self.name,
                 p.x,
                 p.y,
