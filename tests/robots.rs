@@ -111,6 +111,43 @@ fn a_urdf_that_ends_short_of_its_flange_takes_a_tool_offset() {
 }
 
 #[test]
+fn the_hole_stands_where_the_robot_section_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let far = cross_with(
+        dir.path(),
+        "far.toml",
+        "[robot]\nbuiltin = \"ur5e\"\nhole_xy_mm = [1200, 0]\n",
+    );
+    let err = load(&far).unwrap_err().to_string();
+    assert!(
+        err.contains("cannot reach") && err.contains("hole_xy_mm"),
+        "{err}"
+    );
+    let near = cross_with(
+        dir.path(),
+        "near.toml",
+        "[robot]\nbuiltin = \"ur5e\"\nhole_xy_mm = [350, 200]\n",
+    );
+    let default = cross_with(dir.path(), "default.toml", "[robot]\nbuiltin = \"ur5e\"\n");
+    let (a, b) = (load(&near).unwrap(), load(&default).unwrap());
+    assert_ne!(a.report.robot.start_q_deg, b.report.robot.start_q_deg);
+    // Another place is another manifold (and another campaign fingerprint).
+    assert_ne!(a.pair.content_key, b.pair.content_key);
+    let request = TrialRequest {
+        pair: PairSource::Assembly(near),
+        method: Method::Direct,
+        t_obs_s: 2.0,
+        seed: 3,
+        ..TrialRequest::new("cross", 0.5)
+    };
+    let r = request.run(&()).unwrap();
+    assert!(
+        r.fault.is_none() && r.final_depth_mm.unwrap() > 5.0,
+        "{r:?}"
+    );
+}
+
+#[test]
 fn the_six_joint_ur5e_holds_the_peg_through_a_trial() {
     let dir = tempfile::tempdir().unwrap();
     let file = cross_with(dir.path(), "ur.toml", "[robot]\nbuiltin = \"ur5e\"\n");
@@ -172,6 +209,7 @@ fn bad_robots_are_refused_naming_the_file_and_field() {
             "tool_xyz_mm",
         ),
         ("builtin = \"ur5e\"\ngripper = 1\n", "gripper"),
+        ("builtin = \"ur5e\"\nhole_xy_mm = [9000, 0]\n", "hole_xy_mm"),
     ];
     for (k, (robot, expected)) in cases.iter().enumerate() {
         let file = cross_with(

@@ -361,8 +361,10 @@ impl Env {
         let inner = py
             .detach(|| {
                 let (pair, _) = request.check()?;
-                let (robot, _) = request.pair.robot()?.load()?;
-                PegEnv::new(pair, robot, config)
+                let spec = request.pair.robot()?;
+                let (robot, _) = spec.load()?;
+                let params = pegtwin::twin::cell::CellParams::default().placed_for(&spec);
+                PegEnv::new(pair, robot, params, config)
             })
             .map_err(py_err)?;
         Ok(Env { inner })

@@ -211,7 +211,7 @@ fn env_row(steps: usize) -> Result<BenchRow> {
     let pair = build_builtin(builtin_by_name("cross")?, 0.5e-3)?;
     let config = EnvConfig::default();
     let control_hz = config.control_hz;
-    let mut env = PegEnv::new(pair, iiwa14()?, config)?;
+    let mut env = PegEnv::new(pair, iiwa14()?, CellParams::default(), config)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let t0 = Instant::now();
     env.reset(0)?;

@@ -568,7 +568,6 @@ const MANIFOLD_FIGURE: &str = "manifold-";
 /// does, into `dir/figures/manifold-{geometry}-{clearance}mm.png` and `.svg`, from the cache
 /// folder `cache_dir` (a manifold that is not there is not drawn; nothing is built).
 pub fn write_manifolds(dir: &Path, scenario: &Scenario, cache_dir: &Path) -> Result<()> {
-    let params = scenario.cell_params();
     let mut drawn = Vec::new();
     for cell in scenario.cells() {
         let key = (cell.geometry.clone(), cell.clearance_mm.to_bits());
@@ -577,7 +576,12 @@ pub fn write_manifolds(dir: &Path, scenario: &Scenario, cache_dir: &Path) -> Res
         }
         drawn.push(key);
         let pair = scenario.pair(&cell)?;
-        if let Some(m) = cache::cached(&pair, &scenario.manifold, &params, cache_dir)? {
+        if let Some(m) = cache::cached(
+            &pair,
+            &scenario.manifold,
+            &scenario.cell_params_for(&cell),
+            cache_dir,
+        )? {
             let name = format!("{MANIFOLD_FIGURE}{}-{}mm", cell.geometry, cell.clearance_mm);
             plot::plot(
                 &m.points,

@@ -201,7 +201,6 @@ pub fn prepare(
     options: &RunOptions,
 ) -> Result<Prepared> {
     let cells = scenario.cells();
-    let params = scenario.cell_params();
     let mut pairs = BTreeMap::new();
     let mut robots = BTreeMap::new();
     let mut manifolds = BTreeMap::new();
@@ -217,7 +216,7 @@ pub fn prepare(
                 &pairs[&key],
                 &robots[&key],
                 &scenario.manifold,
-                &params,
+                &scenario.cell_params_for(cell),
                 Some(&options.cache_dir),
                 options.progress,
             )?;
@@ -329,7 +328,7 @@ pub fn run_one_recorded(
     run_trial(
         pair,
         robot,
-        &scenario.cell_params(),
+        &scenario.cell_params_for(cell),
         &scenario.trial_config(cell),
         manifold,
         spec.seed,
@@ -347,7 +346,7 @@ fn errored(
     let cell = &scenario.cells()[spec.cell];
     errored_trial(
         &prepared.pairs[&pair_key(cell)],
-        &scenario.cell_params(),
+        &scenario.cell_params_for(cell),
         &scenario.trial_config(cell),
         spec.seed,
         message,

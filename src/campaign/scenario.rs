@@ -259,6 +259,12 @@ impl Scenario {
             .map_or_else(RobotSpec::default, |a| a.robot.clone())
     }
 
+    /// The cell parameters of `cell`'s trials and manifold: [`Scenario::cell_params`] with the
+    /// hole where its robot's cell stands it.
+    pub fn cell_params_for(&self, cell: &Condition) -> CellParams {
+        self.cell_params().placed_for(&self.robot(cell))
+    }
+
     fn assembly_of(&self, cell: &Condition) -> Option<&assembly::Assembly> {
         self.loaded_assemblies
             .iter()

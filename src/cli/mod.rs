@@ -5,6 +5,7 @@ use choices::UnitsArg;
 use clap::{Args, Parser, Subcommand};
 use pegtwin::error::{Error, Result};
 use pegtwin::twin::assembly::PairSource;
+use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::geometry::mesh::load_pair;
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
 use pegtwin::twin::robot::RobotModel;
@@ -175,13 +176,14 @@ pub struct ValidateArgs {
 }
 
 impl PairArgs {
-    /// The robot that holds the peg: the assembly's, else the built-in iiwa 14.
-    pub fn robot(&self) -> Result<RobotModel> {
+    /// The robot that holds the peg (the assembly's, else the built-in iiwa 14) and the cell
+    /// it stands in.
+    pub fn robot(&self) -> Result<(RobotModel, CellParams)> {
         let spec = match &self.assembly {
             Some(path) => PairSource::Assembly(path.clone()).robot()?,
             None => RobotSpec::default(),
         };
-        Ok(spec.load()?.0)
+        Ok((spec.load()?.0, CellParams::default().placed_for(&spec)))
     }
 
     /// Builds the pair, printing mesh warnings to stderr.

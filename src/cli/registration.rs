@@ -303,7 +303,8 @@ fn build(args: BuildArgs) -> Result<()> {
     for w in warnings {
         eprintln!("warning: {w}");
     }
-    let (robot, _) = source.robot()?.load()?;
+    let spec = source.robot()?;
+    let (robot, _) = spec.load()?;
     let config = ManifoldSpec {
         episodes: args.episodes,
         episode_s: args.episode_s,
@@ -331,7 +332,7 @@ fn build(args: BuildArgs) -> Result<()> {
     let report = pegtwin::method::manifold::build::build(
         &pair,
         &robot,
-        &pegtwin::twin::cell::CellParams::default(),
+        &pegtwin::twin::cell::CellParams::default().placed_for(&spec),
         &config,
         args.points,
         args.seed,

@@ -5,7 +5,6 @@ use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::SamplerConfig;
 use pegtwin::method::validate_arm::{ArmValidationReport, validate_arm};
-use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::physics::PhysicsParams;
 use pegtwin::twin::validate::{FreePegGains, ValidationReport, validate};
 use serde::Serialize;
@@ -14,11 +13,11 @@ use serde::Serialize;
 pub fn validate_command(args: ValidateArgs) -> Result<i32> {
     let pair = args.pair.build()?;
     let passed = if args.arm {
-        let robot = args.pair.robot()?;
+        let (robot, params) = args.pair.robot()?;
         let report = validate_arm(
             &pair,
             &robot,
-            &CellParams::default(),
+            &params,
             &TrialConfig::default(),
             &SamplerConfig::default(),
         )?;

@@ -177,8 +177,13 @@ pub struct PegEnv {
 }
 
 impl PegEnv {
-    pub fn new(pair: PartPair, robot: RobotModel, config: EnvConfig) -> Result<Self> {
-        let params = CellParams::default();
+    /// An environment of `pair` held by `robot` in the cell `params`.
+    pub fn new(
+        pair: PartPair,
+        robot: RobotModel,
+        params: CellParams,
+        config: EnvConfig,
+    ) -> Result<Self> {
         config.ensure_valid(&params)?;
         let trial = TrialConfig {
             start: config.start,
@@ -371,7 +376,7 @@ mod tests {
 
     fn env(config: EnvConfig) -> Result<PegEnv> {
         let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
-        PegEnv::new(pair, iiwa14().unwrap(), config)
+        PegEnv::new(pair, iiwa14().unwrap(), CellParams::default(), config)
     }
 
     #[test]

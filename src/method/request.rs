@@ -95,8 +95,9 @@ impl TrialRequest {
         (pair, config): (PartPair, TrialConfig),
         progress: &dyn BuildProgress,
     ) -> Result<PreparedTrial> {
-        let (robot, _warnings) = self.pair.robot()?.load()?;
-        let params = CellParams::default();
+        let spec = self.pair.robot()?;
+        let (robot, _warnings) = spec.load()?;
+        let params = CellParams::default().placed_for(&spec);
         let manifold = match self.method {
             Method::Manifold => Some(self.reference_manifold(&pair, &robot, &params, progress)?),
             Method::Direct => None,

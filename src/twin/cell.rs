@@ -16,6 +16,7 @@ use crate::twin::physics::{
     PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
     set_prediction_for_speed,
 };
+use crate::twin::robot::spec::RobotSpec;
 use crate::twin::robot::{Inertial, Iso, RobotModel, Tool};
 use crate::twin::sensing::{SensorParams, Sensors, Wrench6};
 use nalgebra::{DVector, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
@@ -81,6 +82,16 @@ impl CellParams {
             )));
         }
         Ok(())
+    }
+}
+
+impl CellParams {
+    /// These parameters with the hole where `robot`'s cell stands it (its `hole_xy_m`, if any).
+    pub fn placed_for(mut self, robot: &RobotSpec) -> Self {
+        if let Some(xy) = robot.hole_xy_m {
+            self.hole_xy_m = xy;
+        }
+        self
     }
 }
 

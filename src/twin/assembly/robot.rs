@@ -8,6 +8,7 @@
 //! tool_xyz_mm = [0, 0, 0]      # where the peg's top face sits on the flange link
 //! tool_rpy_deg = [0, 0, 0]
 //! start_q_deg = [0, -90, 90, -90, -90, 0]  # optional: near the start pose (an IK seed)
+//! hole_xy_mm = [400, 0]        # optional: where the hole stands in the base frame (550, 0)
 //! ```
 //!
 //! The robot is loaded and asked to reach the cell's start pose when the assembly loads, so a
@@ -35,10 +36,14 @@ pub(super) struct RobotEntry {
     #[serde(default)]
     tool_rpy_deg: [f64; 3],
     start_q_deg: Option<Vec<f64>>,
+    /// Where the hole's fixture stands in the robot's base frame, x and y, mm.
+    hole_xy_mm: Option<[f64; 2]>,
 }
 
 /// The largest tool offset accepted, mm.
 const MAX_TOOL_OFFSET_MM: f64 = 1000.0;
+/// The farthest a hole may stand from the robot's base, per axis, mm.
+const MAX_HOLE_XY_MM: f64 = 3000.0;
 /// How far above the mouth the reach check puts the peg's tip, m (the trials' highest start).
 const REACH_CHECK_HEIGHT_M: f64 = 0.02;
 
@@ -71,8 +76,13 @@ pub(super) fn spec(entry: Option<&RobotEntry>, dir: &Path, file: &Path) -> Resul
         }
     };
     for (field, v, max) in [
-        ("tool_xyz_mm", e.tool_xyz_mm, MAX_TOOL_OFFSET_MM),
-        ("tool_rpy_deg", e.tool_rpy_deg, 360.0),
+        ("tool_xyz_mm", &e.tool_xyz_mm[..], MAX_TOOL_OFFSET_MM),
+        ("tool_rpy_deg", &e.tool_rpy_deg[..], 360.0),
+        (
+            "hole_xy_mm",
+            e.hole_xy_mm.as_ref().map_or(&[][..], |v| &v[..]),
+            MAX_HOLE_XY_MM,
+        ),
     ] {
         if !v.iter().all(|x| x.abs() <= max) {
             return Err(bad(format!(
@@ -95,6 +105,7 @@ pub(super) fn spec(entry: Option<&RobotEntry>, dir: &Path, file: &Path) -> Resul
         flange_link: e.flange_link.clone(),
         tool_offset: Iso::identity(),
         start_q_rad,
+        hole_xy_m: e.hole_xy_mm.map(|v| v.map(|x| x * 1e-3)),
     }
     .with_tool_mm_deg(e.tool_xyz_mm, e.tool_rpy_deg))
 }
@@ -127,7 +138,7 @@ pub(super) fn check_reach(spec: &RobotSpec, pair: &PartPair, file: &Path) -> Res
         other => other,
     };
     let (model, warnings) = spec.load().map_err(in_file)?;
-    let params = CellParams::default();
+    let params = CellParams::default().placed_for(spec);
     let model = with_peg(model, pair, &params).map_err(in_file)?;
     let start = tcp_in_hole(&nominal_hole_pose(pair, &params), -REACH_CHECK_HEIGHT_M);
     let q = model.start_configuration(&start).map_err(in_file)?;

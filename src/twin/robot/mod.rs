@@ -471,8 +471,8 @@ impl RobotModel {
             Error::Input(format!(
                 "robot '{}' cannot reach the start pose at ({:.4}, {:.4}, {:.4}) m (base frame) \
                  with the peg pointing down and every joint above the table, from {} seeds \
-                 (the cell stands the hole 0.55 m in front of the base); check the robot's \
-                 tool offset, or give a start_q_deg near a pose that reaches it",
+                 ([robot] hole_xy_mm says where the hole stands; 550, 0 mm by default); \
+                 check the robot's tool offset, or give a start_q_deg near a pose that reaches it",
                 self.name,
                 p.x,
                 p.y,

@@ -32,6 +32,9 @@ pub struct RobotSpec {
     /// A joint configuration near the start pose for the inverse kinematics, rad (`None`: the
     /// built-in's, or searched for; see [`RobotModel::start_configuration`]).
     pub start_q_rad: Option<Vec<f64>>,
+    /// Where the hole's fixture stands in the robot's base frame, x and y, m (`None`: the cell's
+    /// default, 0.55 m in front of the base).
+    pub hole_xy_m: Option<[f64; 2]>,
 }
 
 impl Default for RobotSpec {
@@ -49,6 +52,7 @@ impl RobotSpec {
             flange_link: None,
             tool_offset: Iso::identity(),
             start_q_rad: None,
+            hole_xy_m: None,
         }
     }
 
@@ -105,13 +109,18 @@ impl RobotSpec {
         Ok((model, loaded.warnings))
     }
 
-    /// Checksum of the URDF text, the flange link, the tool offset and the seed.
+    /// Checksum of the URDF text, the flange link, the tool offset, the seed and the hole's place.
     fn content_key(&self, text: &str) -> String {
         let mut h = crc32fast::Hasher::new();
         h.update(text.as_bytes());
         h.update(self.flange_link.as_deref().unwrap_or("").as_bytes());
         let t = self.tool_offset.to_homogeneous();
-        for v in t.iter().chain(self.start_q_rad.iter().flatten()) {
+        let hole = self.hole_xy_m.iter().flatten();
+        for v in t
+            .iter()
+            .chain(self.start_q_rad.iter().flatten())
+            .chain(hole)
+        {
             h.update(&v.to_le_bytes());
         }
         format!("{}-{:08x}", self.short_name(), h.finalize())
