@@ -52,10 +52,11 @@ fn verdict(passed: bool) -> &'static str {
 
 fn print_arm_validation(r: &ArmValidationReport) {
     println!(
-        "validate --arm {} at {} mm clearance (penetration limit {:.4} mm; iiwa 14, {} Gauss-Seidel passes x {} substeps)",
+        "validate --arm {} at {} mm clearance (penetration limit {:.4} mm; {}, {} Gauss-Seidel passes x {} substeps)",
         r.geometry,
         r.clearance_mm,
         r.penetration_limit_mm,
+        r.robot,
         r.physics.pgs_iterations,
         r.physics.solver_iterations
     );

@@ -71,6 +71,8 @@ pub struct ArmCaseReport {
 #[derive(Clone, Debug, Serialize)]
 pub struct ArmValidationReport {
     pub geometry: String,
+    /// The robot's name (its URDF's `<robot name>`).
+    pub robot: String,
     pub clearance_mm: f64,
     pub penetration_limit_mm: f64,
     pub physics: PhysicsParams,
@@ -179,6 +181,7 @@ pub fn validate_arm(
     }
     Ok(ArmValidationReport {
         geometry: pair.name.clone(),
+        robot: robot.name.clone(),
         clearance_mm: pair.clearance_mm(),
         penetration_limit_mm: limit_m * 1e3,
         physics: params.physics.clone(),
