@@ -51,6 +51,22 @@ fn arm_urdf(n: usize, length_m: f64, branch: bool) -> String {
     text + "</robot>\n"
 }
 
+/// A short direct trial of the assembly at `file` runs without a fault and pushes the peg from
+/// its 3 mm start further in.
+fn assert_direct_trial_goes_in(file: PathBuf) {
+    let request = TrialRequest {
+        pair: PairSource::Assembly(file),
+        method: Method::Direct,
+        t_obs_s: 2.0,
+        seed: 3,
+        ..TrialRequest::new("cross", 0.5)
+    };
+    let r = request.run(&()).unwrap();
+    assert!(r.fault.is_none(), "{:?}", r.fault);
+    let depth_mm = r.final_depth_mm.unwrap();
+    assert!(depth_mm > 5.0, "{depth_mm} mm");
+}
+
 #[test]
 fn a_flange_link_and_tool_offset_put_the_peg_where_the_default_flange_does() {
     let dir = tempfile::tempdir().unwrap();
@@ -133,18 +149,7 @@ fn the_hole_stands_where_the_robot_section_says() {
     assert_ne!(a.report.robot.start_q_deg, b.report.robot.start_q_deg);
     // Another place is another manifold (and another campaign fingerprint).
     assert_ne!(a.pair.content_key, b.pair.content_key);
-    let request = TrialRequest {
-        pair: PairSource::Assembly(near),
-        method: Method::Direct,
-        t_obs_s: 2.0,
-        seed: 3,
-        ..TrialRequest::new("cross", 0.5)
-    };
-    let r = request.run(&()).unwrap();
-    assert!(
-        r.fault.is_none() && r.final_depth_mm.unwrap() > 5.0,
-        "{r:?}"
-    );
+    assert_direct_trial_goes_in(near);
 }
 
 #[test]
@@ -153,18 +158,7 @@ fn the_six_joint_ur5e_holds_the_peg_through_a_trial() {
     let file = cross_with(dir.path(), "ur.toml", "[robot]\nbuiltin = \"ur5e\"\n");
     let assembly = load(&file).unwrap();
     assert_eq!(assembly.report.robot.joints, 6);
-    let request = TrialRequest {
-        pair: PairSource::Assembly(file),
-        method: Method::Direct,
-        t_obs_s: 2.0,
-        seed: 3,
-        ..TrialRequest::new("cross", 0.5)
-    };
-    let r = request.run(&()).unwrap();
-    assert!(r.fault.is_none(), "{:?}", r.fault);
-    // The trial starts 3 mm in; the direct insertion pushes the peg further down.
-    let depth_mm = r.final_depth_mm.unwrap();
-    assert!(depth_mm > 5.0, "{depth_mm} mm");
+    assert_direct_trial_goes_in(file);
 }
 
 #[test]
@@ -186,7 +180,7 @@ fn bad_robots_are_refused_naming_the_file_and_field() {
     let cases = [
         (
             "builtin = \"ur10\"\n",
-            "expected one of iiwa14, iiwa7, ur5e",
+            "expected one of the built-in robots iiwa14, iiwa7, ur5e",
         ),
         ("urdf = \"branch.urdf\"\n", "only serial chains"),
         ("urdf = \"missing.urdf\"\n", "cannot read"),

@@ -48,9 +48,8 @@ def test_a_reset_sets_up_the_trial_of_that_seed() -> None:
     assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)  # the paper's partial insertion
 
 
-def test_an_assembly_file_is_an_environment_too(cross_assembly: Path) -> None:
-    assembly = cross_assembly
-    env = PegInHoleEnv(assembly=assembly, offset_mm=0, offset_deg=0)
+def assert_pushing_down_inserts(env: PegInHoleEnv) -> None:
+    """From the partial insertion, pushing straight down inserts without a fault."""
     _, info = env.reset(seed=0)
     assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)
     for _ in range(60):
@@ -58,6 +57,12 @@ def test_an_assembly_file_is_an_environment_too(cross_assembly: Path) -> None:
         if terminated or truncated:
             break
     assert info["success"] and info["sim_fault"] is None
+
+
+def test_an_assembly_file_is_an_environment_too(cross_assembly: Path) -> None:
+    assembly = cross_assembly
+    env = PegInHoleEnv(assembly=assembly, offset_mm=0, offset_deg=0)
+    assert_pushing_down_inserts(env)
 
 
 def test_the_six_joint_ur5e_of_an_assembly_drives_the_environment(tmp_path: Path) -> None:
@@ -67,13 +72,7 @@ def test_the_six_joint_ur5e_of_an_assembly_drives_the_environment(tmp_path: Path
         '[hole]\nbuiltin = "cross"\n[robot]\nbuiltin = "ur5e"\n'
     )
     env = PegInHoleEnv(assembly=assembly, offset_mm=0, offset_deg=0)
-    _, info = env.reset(seed=0)
-    assert info["depth_m"] == pytest.approx(3e-3, abs=1e-5)
-    for _ in range(60):
-        _, _, terminated, truncated, info = env.step(np.array([0, 0, -1, 0, 0, 0.0]))
-        if terminated or truncated:
-            break
-    assert info["success"] and info["sim_fault"] is None
+    assert_pushing_down_inserts(env)
 
 
 def test_pushing_down_inserts_and_the_truth_is_in_info() -> None:

@@ -18,7 +18,8 @@ use crate::error::{Error, Result};
 use crate::twin::cell::{CellParams, nominal_hole_pose, tcp_in_hole, with_peg};
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::Iso;
-use crate::twin::robot::spec::{RobotSource, RobotSpec, check_builtin};
+use crate::twin::robot::spec::{RobotSource, RobotSpec};
+use crate::twin::robot::urdf;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -56,7 +57,7 @@ pub(super) fn spec(entry: Option<&RobotEntry>, dir: &Path, file: &Path) -> Resul
     let bad = |msg: String| Error::file(file, msg);
     let source = match (&e.builtin, &e.urdf) {
         (Some(name), None) => {
-            check_builtin(name, file)?;
+            urdf::builtin_text(name).map_err(|e| bad(format!("[robot] builtin: {e}")))?;
             if !e.package_paths.is_empty() {
                 return Err(bad(
                     "[robot] package_paths: only with urdf = \"FILE\"".into()

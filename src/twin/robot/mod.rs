@@ -457,8 +457,10 @@ impl RobotModel {
                 continue;
             };
             let k = self.kinematics(&q);
-            let low = k.frames.iter().skip(1);
-            if low.clone().any(|f| f.translation.z < MIN_JOINT_HEIGHT_M) {
+            if k.frames[1..]
+                .iter()
+                .any(|f| f.translation.z < MIN_JOINT_HEIGHT_M)
+            {
                 continue;
             }
             let score = self.start_score(&q, &k);

@@ -3,10 +3,10 @@
 //! optionally, a joint configuration near the start pose. An assembly file's `[robot]` section
 //! is read into one (`crate::twin::assembly`).
 
-use super::urdf::{self, BUILTIN_ROBOTS};
+use super::urdf;
 use super::{Iso, RobotModel, iso_xyz_rpy};
 use crate::error::{Error, Result};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Where the URDF comes from.
 #[derive(Clone, Debug, PartialEq)]
@@ -134,20 +134,5 @@ impl RobotSpec {
                 .file_stem()
                 .map_or("robot".into(), |s| s.to_string_lossy().into_owned()),
         }
-    }
-}
-
-/// Checks a built-in robot name.
-pub fn check_builtin(name: &str, file: &Path) -> Result<()> {
-    if BUILTIN_ROBOTS.contains(&name) {
-        Ok(())
-    } else {
-        Err(Error::file(
-            file,
-            format!(
-                "[robot] builtin = \"{name}\": expected one of {}",
-                BUILTIN_ROBOTS.join(", ")
-            ),
-        ))
     }
 }
