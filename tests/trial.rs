@@ -202,3 +202,36 @@ fn a_search_from_above_finds_the_offset_hole_and_inserts() {
         r.final_depth_mm
     );
 }
+
+/// The insertion ends on the seat condition (issue 16): with the hole where the robot believes
+/// it, the direct insertion slides to the floor and rests there with about the seat force, not
+/// the spring force of the target's overshoot past the floor (10 mm at 2000 N/m: 20 N).
+#[test]
+fn an_aligned_insertion_seats_on_the_floor_with_the_seat_force() {
+    let pair = cross(0.5e-3);
+    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
+    let config = TrialConfig {
+        method: Method::Direct,
+        t_obs_s: 1.0,
+        offset_range: [0.0; 6],
+        ..Default::default()
+    };
+    let r = run_trial(
+        &pair,
+        &robot,
+        &CellParams::default(),
+        &config,
+        None,
+        5,
+        None,
+    )
+    .unwrap();
+    assert!(r.success, "{}: {:?} mm", r.outcome, r.final_depth_mm);
+    assert_eq!(r.insert_end, Some(pegtwin::method::insert::InsertEnd::Seat));
+    let seat = config.insert_seat_force_n;
+    assert!(
+        r.peak_fz_n > seat && r.peak_fz_n < seat + 3.0,
+        "peak |Fz| {} N against a {seat} N seat force",
+        r.peak_fz_n
+    );
+}

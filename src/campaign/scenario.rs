@@ -83,6 +83,13 @@ pub struct Scenario {
     pub physics: PhysicsOverride,
     #[serde(default)]
     pub registration: Option<RegistrationConfig>,
+    /// The insertion's motion and break conditions, for every method.
+    #[serde(default, skip_serializing_if = "InsertionOverride::is_default")]
+    pub insertion: InsertionOverride,
+    /// The direct baseline's own gains and insertion, over the above (the paper tuned the
+    /// baseline's impedance for success, V-B; `pegtwin tune --target direct` searches them).
+    #[serde(default, skip_serializing_if = "DirectOverride::is_default")]
+    pub direct: DirectOverride,
 }
 
 fn default_seed() -> u64 {
@@ -152,6 +159,82 @@ impl GainsOverride {
             g.additional_force = v;
         }
         g
+    }
+}
+
+/// Settings of the insertion (paper IV-E) to replace; units in the names.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InsertionOverride {
+    /// Speed of the insertion target, mm/s.
+    pub speed_mm_per_s: Option<f64>,
+    /// How far past the believed floor the target goes, mm.
+    pub overshoot_mm: Option<f64>,
+    /// The jam break condition: |Fz| above this anywhere stops the target, N.
+    pub jam_force_n: Option<f64>,
+    /// The seat break condition: near the floor, a stalled tip pressing harder than this, N.
+    pub seat_force_n: Option<f64>,
+    /// How far above the believed floor the seat condition arms, mm.
+    pub seat_window_mm: Option<f64>,
+    /// Time limit of the insertion, s.
+    pub limit_s: Option<f64>,
+}
+
+impl InsertionOverride {
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// `config` with these fields replaced.
+    fn apply(&self, config: &mut TrialConfig) {
+        let mm = |v: Option<f64>| v.map(|v| v * 1e-3);
+        let c = config;
+        c.insert_speed_m_per_s = mm(self.speed_mm_per_s).unwrap_or(c.insert_speed_m_per_s);
+        c.insert_overshoot_m = mm(self.overshoot_mm).unwrap_or(c.insert_overshoot_m);
+        c.insert_stop_force_n = self.jam_force_n.unwrap_or(c.insert_stop_force_n);
+        c.insert_seat_force_n = self.seat_force_n.unwrap_or(c.insert_seat_force_n);
+        c.insert_seat_window_m = mm(self.seat_window_mm).unwrap_or(c.insert_seat_window_m);
+        c.insert_limit_s = self.limit_s.unwrap_or(c.insert_limit_s);
+    }
+
+    /// Range checks, naming the field under `section`.
+    fn ensure_valid(&self, section: &str) -> Result<()> {
+        // (field, value, lowest, highest, whether the lowest itself is refused)
+        let checks = [
+            ("speed_mm_per_s", self.speed_mm_per_s, 0.0, 100.0, true),
+            ("overshoot_mm", self.overshoot_mm, 0.0, 50.0, false),
+            ("jam_force_n", self.jam_force_n, 0.0, 500.0, true),
+            ("seat_force_n", self.seat_force_n, 0.0, 500.0, true),
+            ("seat_window_mm", self.seat_window_mm, 0.0, 50.0, false),
+            ("limit_s", self.limit_s, 0.0, 600.0, true),
+        ];
+        for (field, v, lo, hi, lo_open) in checks {
+            let Some(v) = v else { continue };
+            let above = if lo_open { v > lo } else { v >= lo };
+            if !(above && v <= hi) {
+                let bracket = if lo_open { "(" } else { "[" };
+                return Err(Error::Input(format!(
+                    "{section}.{field} = {v:?}: expected a value in {bracket}{lo}, {hi}]"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The direct baseline's own settings, applied to its cells over the scenario's.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DirectOverride {
+    #[serde(default)]
+    pub gains: PhaseGains,
+    #[serde(default)]
+    pub insertion: InsertionOverride,
+}
+
+impl DirectOverride {
+    fn is_default(&self) -> bool {
+        *self == Self::default()
     }
 }
 
@@ -333,15 +416,19 @@ impl Scenario {
             .ensure_valid()
             .map_err(|e| Error::Input(format!("manifold: {e}")))?;
         let d = TrialConfig::default();
-        for (phase, o, base) in [
-            ("observe", &self.gains.observe, &d.observe_gains),
-            ("align", &self.gains.align, &d.align_gains),
-            ("insert", &self.gains.insert, &d.insert_gains),
-        ] {
-            o.apply(base)
-                .ensure_valid()
-                .map_err(|e| Error::Input(format!("gains.{phase}: {e}")))?;
+        for (section, gains) in [("gains", &self.gains), ("direct.gains", &self.direct.gains)] {
+            for (phase, o, base) in [
+                ("observe", &gains.observe, &d.observe_gains),
+                ("align", &gains.align, &d.align_gains),
+                ("insert", &gains.insert, &d.insert_gains),
+            ] {
+                o.apply(base)
+                    .ensure_valid()
+                    .map_err(|e| Error::Input(format!("{section}.{phase}: {e}")))?;
+            }
         }
+        self.insertion.ensure_valid("insertion")?;
+        self.direct.insertion.ensure_valid("direct.insertion")?;
         self.cell_params().ensure_valid()?;
         for cell in self.cells() {
             self.trial_config(&cell)
@@ -428,11 +515,12 @@ impl Scenario {
         cells
     }
 
-    /// The trial configuration of a cell.
+    /// The trial configuration of a cell: the defaults, the scenario's overrides, and for the
+    /// direct baseline its own (`[direct]`) over those.
     pub fn trial_config(&self, cell: &Condition) -> TrialConfig {
         let d = TrialConfig::default();
         let (m, a) = (self.offset_mm * 1e-3, self.offset_deg.to_radians());
-        TrialConfig {
+        let mut c = TrialConfig {
             method: cell.method,
             start: self.start,
             t_obs_s: cell.t_obs_s,
@@ -443,7 +531,16 @@ impl Scenario {
             success_eps_m: self.success_mm * 1e-3,
             registration: self.registration.clone().unwrap_or(d.registration.clone()),
             ..d
+        };
+        self.insertion.apply(&mut c);
+        if cell.method == Method::Direct {
+            let g = &self.direct.gains;
+            c.observe_gains = g.observe.apply(&c.observe_gains);
+            c.align_gains = g.align.apply(&c.align_gains);
+            c.insert_gains = g.insert.apply(&c.insert_gains);
+            self.direct.insertion.apply(&mut c);
         }
+        c
     }
 
     /// The cell parameters (sensors, physics) of every trial and manifold.
@@ -510,6 +607,36 @@ methods = ["manifold", "direct"]
     }
 
     #[test]
+    fn the_direct_baseline_takes_its_own_gains_and_insertion_over_the_scenarios() {
+        let text = format!(
+            "{MINIMAL}\n[insertion]\nseat_force_n = 4\nspeed_mm_per_s = 10\n\
+             [direct.gains.insert]\nstiffness = [800, 800, 3000, 40, 40, 40]\n\
+             [direct.insertion]\nseat_force_n = 25\n"
+        );
+        let s = Scenario::parse(&text).unwrap();
+        let cells = s.cells();
+        let manifold = s.trial_config(&cells[0]);
+        let direct = s.trial_config(cells.last().unwrap());
+        assert_eq!(direct.method, Method::Direct);
+        let d = TrialConfig::default();
+        assert_eq!(manifold.insert_gains, d.insert_gains);
+        assert_eq!(manifold.insert_seat_force_n, 4.0);
+        assert_eq!(direct.insert_gains.stiffness[2], 3000.0);
+        assert_eq!(direct.insert_seat_force_n, 25.0);
+        for c in [&manifold, &direct] {
+            assert!((c.insert_speed_m_per_s - 0.01).abs() < 1e-12);
+        }
+        // Absent, the sections leave the fingerprint of older scenarios as it was.
+        let plain = Scenario::parse(MINIMAL).unwrap();
+        assert!(!plain.fingerprint().is_empty());
+        let json = serde_json::to_string(&plain).unwrap();
+        assert!(
+            !json.contains("insertion") && !json.contains("direct\":"),
+            "{json}"
+        );
+    }
+
+    #[test]
     fn errors_name_the_line_or_the_field() {
         let e = Scenario::parse(&format!("{MINIMAL}\nbogus = 1\n")).unwrap_err();
         assert!(
@@ -529,6 +656,17 @@ methods = ["manifold", "direct"]
         assert!(e.to_string().contains("physics.pgs_iterations"), "{e}");
         let e = Scenario::parse(&format!("{MINIMAL}\n[physics]\nfriction = -1\n")).unwrap_err();
         assert!(e.to_string().contains("physics.friction"), "{e}");
+        let e = Scenario::parse(&format!(
+            "{MINIMAL}\n[direct.insertion]\nseat_force_n = 0\n"
+        ))
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("direct.insertion.seat_force_n"),
+            "{e}"
+        );
+        let e = Scenario::parse(&format!("{MINIMAL}\n[insertion]\nspeed_mm_per_s = 1e9\n"))
+            .unwrap_err();
+        assert!(e.to_string().contains("insertion.speed_mm_per_s"), "{e}");
     }
 
     #[test]

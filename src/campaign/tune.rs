@@ -17,37 +17,89 @@
 
 use crate::campaign::records::TrialRecord;
 use crate::campaign::run::{Prepared, RunOptions, all_trials, prepare, run_trials};
-use crate::campaign::scenario::Scenario;
+use crate::campaign::scenario::{GainsOverride, Scenario};
 use crate::error::{Error, Result};
+use crate::method::config::Method;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use serde::Serialize;
 
 /// Survivors of a rung: one in `ETA`.
 const ETA: usize = 3;
 
+/// What the search tunes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TuneTarget {
+    /// The observation and insertion gains of every method (`[gains.observe]`,
+    /// `[gains.insert]`).
+    #[default]
+    Gains,
+    /// The direct baseline's insertion, as the paper tuned it ("impedance parameters optimized
+    /// for higher success", V-B): its insertion stiffness and damping and its seat force
+    /// (`[direct.gains.insert]`, `[direct.insertion]`); only the scenario's direct cells run.
+    Direct,
+}
+
+/// One tuned parameter: its name (a column of tune.csv), its range, and whether it is drawn
+/// log-uniformly.
+#[derive(Clone, Copy, Debug)]
+struct Axis {
+    name: &'static str,
+    lo: f64,
+    hi: f64,
+    log: bool,
+}
+
+const fn axis(name: &'static str, lo: f64, hi: f64, log: bool) -> Axis {
+    Axis { name, lo, hi, log }
+}
+
+/// [`TuneTarget::Gains`]: observation x, y stiffness (N/m; z is 1.5 x), rotational (N m/rad),
+/// damping; insertion x, y (N/m; z 2000 N/m kept), rotational, damping.
+const GAINS_AXES: [Axis; 6] = [
+    axis("observe_n_per_m", 300.0, 3000.0, true),
+    axis("observe_nm_per_rad", 2.0, 50.0, true),
+    axis("observe_damping", 0.3, 1.0, false),
+    axis("insert_n_per_m", 300.0, 5000.0, true),
+    axis("insert_nm_per_rad", 10.0, 300.0, true),
+    axis("insert_damping", 0.3, 1.0, false),
+];
+
+/// [`TuneTarget::Direct`]: insertion x, y and z stiffness (N/m), rotational (N m/rad), damping,
+/// and the seat force (N; at the jam force's 40 N the seat condition never acts: the baseline
+/// may push as hard as it likes).
+const DIRECT_AXES: [Axis; 5] = [
+    axis("insert_n_per_m", 300.0, 5000.0, true),
+    axis("insert_z_n_per_m", 500.0, 5000.0, true),
+    axis("insert_nm_per_rad", 10.0, 300.0, true),
+    axis("insert_damping", 0.3, 1.0, false),
+    axis("seat_force_n", 3.0, 40.0, true),
+];
+
+impl TuneTarget {
+    fn axes(self) -> &'static [Axis] {
+        match self {
+            TuneTarget::Gains => &GAINS_AXES,
+            TuneTarget::Direct => &DIRECT_AXES,
+        }
+    }
+}
+
 /// One point of the search space.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug)]
 pub struct Candidate {
     pub id: usize,
-    /// Observation: translational stiffness x, y (N/m; z is 1.5 x), rotational (N m/rad), damping.
-    pub observe_n_per_m: f64,
-    pub observe_nm_per_rad: f64,
-    pub observe_damping: f64,
-    /// Insertion: translational stiffness x, y (N/m), rotational (N m/rad), damping.
-    pub insert_n_per_m: f64,
-    pub insert_nm_per_rad: f64,
-    pub insert_damping: f64,
+    pub target: TuneTarget,
+    /// The value of each of the target's axes, in their order.
+    pub values: Vec<f64>,
 }
 
 /// One evaluation of a candidate at a rung.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug)]
 pub struct Evaluation {
     pub rung: usize,
     pub trials_per_cell: usize,
-    #[serde(flatten)]
     pub candidate: Candidate,
     pub trials: usize,
     pub successes: usize,
@@ -64,6 +116,7 @@ pub struct TuneOptions {
     /// Trials per cell at the first rung.
     pub first_trials: usize,
     pub seed: u64,
+    pub target: TuneTarget,
 }
 
 impl Default for TuneOptions {
@@ -72,6 +125,7 @@ impl Default for TuneOptions {
             candidates: 27,
             first_trials: 2,
             seed: 1,
+            target: TuneTarget::Gains,
         }
     }
 }
@@ -107,73 +161,100 @@ fn latin_hypercube(n: usize, d: usize, seed: u64) -> Vec<Vec<f64>> {
 }
 
 /// The candidates of the first rung.
-pub fn candidates(n: usize, seed: u64) -> Vec<Candidate> {
-    latin_hypercube(n, 6, seed)
+pub fn candidates(n: usize, seed: u64, target: TuneTarget) -> Vec<Candidate> {
+    let axes = target.axes();
+    latin_hypercube(n, axes.len(), seed)
         .into_iter()
         .enumerate()
         .map(|(id, u)| Candidate {
             id,
-            observe_n_per_m: log_lerp(300.0, 3000.0, u[0]),
-            observe_nm_per_rad: log_lerp(2.0, 50.0, u[1]),
-            observe_damping: lerp(0.3, 1.0, u[2]),
-            insert_n_per_m: log_lerp(300.0, 5000.0, u[3]),
-            insert_nm_per_rad: log_lerp(10.0, 300.0, u[4]),
-            insert_damping: lerp(0.3, 1.0, u[5]),
+            target,
+            values: axes
+                .iter()
+                .zip(u)
+                .map(|(a, u)| {
+                    if a.log {
+                        log_lerp(a.lo, a.hi, u)
+                    } else {
+                        lerp(a.lo, a.hi, u)
+                    }
+                })
+                .collect(),
         })
         .collect()
 }
 
+/// Sets the diagonal stiffness (x, y translational, z, rotational) and one damping ratio of a
+/// phase's override, keeping its other fields.
+fn set_gains(g: &mut GainsOverride, t: f64, tz: f64, r: f64, d: f64) {
+    g.stiffness = Some([t, t, tz, r, r, r]);
+    g.damping_ratio = Some([d; 6]);
+}
+
+/// A `[section]` of diagonal gains as TOML.
+fn gains_toml(section: &str, g: &GainsOverride) -> String {
+    let [t, _, tz, r, ..] = g.stiffness.expect("tuned gains have stiffness");
+    let d = g.damping_ratio.expect("tuned gains have damping")[0];
+    format!(
+        "[{section}]\nstiffness = [{t:.0}, {t:.0}, {tz:.0}, {r:.1}, {r:.1}, {r:.1}]\n\
+         damping_ratio = [{d:.2}, {d:.2}, {d:.2}, {d:.2}, {d:.2}, {d:.2}]\n"
+    )
+}
+
 impl Candidate {
-    /// The scenario with this candidate's gains (other overrides of the scenario kept).
+    /// The value of the axis named `name`.
+    fn get(&self, name: &str) -> f64 {
+        let k = self.target.axes().iter().position(|a| a.name == name);
+        self.values[k.expect("an axis of the target")]
+    }
+
+    /// The scenario with this candidate's settings (other overrides of the scenario kept); for
+    /// the direct target, only its direct cells.
     pub fn apply(&self, scenario: &Scenario) -> Scenario {
         let mut s = scenario.clone();
-        let (o, i) = (self.observe_n_per_m, self.insert_n_per_m);
-        s.gains.observe.stiffness = Some([
-            o,
-            o,
-            1.5 * o,
-            self.observe_nm_per_rad,
-            self.observe_nm_per_rad,
-            self.observe_nm_per_rad,
-        ]);
-        s.gains.observe.damping_ratio = Some([self.observe_damping; 6]);
-        s.gains.insert.stiffness = Some([
-            i,
-            i,
-            2000.0,
-            self.insert_nm_per_rad,
-            self.insert_nm_per_rad,
-            self.insert_nm_per_rad,
-        ]);
-        s.gains.insert.damping_ratio = Some([self.insert_damping; 6]);
+        let v = |name| self.get(name);
+        match self.target {
+            TuneTarget::Gains => {
+                let o = v("observe_n_per_m");
+                let (r, d) = (v("observe_nm_per_rad"), v("observe_damping"));
+                set_gains(&mut s.gains.observe, o, 1.5 * o, r, d);
+                let (i, r, d) = (
+                    v("insert_n_per_m"),
+                    v("insert_nm_per_rad"),
+                    v("insert_damping"),
+                );
+                set_gains(&mut s.gains.insert, i, 2000.0, r, d);
+            }
+            TuneTarget::Direct => {
+                s.methods = vec![Method::Direct];
+                set_gains(
+                    &mut s.direct.gains.insert,
+                    v("insert_n_per_m"),
+                    v("insert_z_n_per_m"),
+                    v("insert_nm_per_rad"),
+                    v("insert_damping"),
+                );
+                s.direct.insertion.seat_force_n = Some(v("seat_force_n"));
+            }
+        }
         s
     }
 
-    /// The gains as a scenario snippet.
-    pub fn snippet(&self) -> String {
-        let section = |name: &str, t: f64, tz: f64, r: f64, d: f64| {
-            format!(
-                "[gains.{name}]\nstiffness = [{t:.0}, {t:.0}, {tz:.0}, {r:.1}, {r:.1}, {r:.1}]\ndamping_ratio = [{d:.2}, {d:.2}, {d:.2}, {d:.2}, {d:.2}, {d:.2}]\n"
-            )
-        };
-        let o = self.observe_n_per_m;
-        format!(
-            "{}\n{}",
-            section(
-                "observe",
-                o,
-                1.5 * o,
-                self.observe_nm_per_rad,
-                self.observe_damping
+    /// The candidate's settings as a scenario snippet.
+    pub fn snippet(&self, scenario: &Scenario) -> String {
+        let s = self.apply(scenario);
+        match self.target {
+            TuneTarget::Gains => format!(
+                "{}\n{}",
+                gains_toml("gains.observe", &s.gains.observe),
+                gains_toml("gains.insert", &s.gains.insert)
             ),
-            section(
-                "insert",
-                self.insert_n_per_m,
-                2000.0,
-                self.insert_nm_per_rad,
-                self.insert_damping
-            )
-        )
+            TuneTarget::Direct => format!(
+                "{}\n[direct.insertion]\nseat_force_n = {:.1}\n",
+                gains_toml("direct.gains.insert", &s.direct.gains.insert),
+                self.get("seat_force_n")
+            ),
+        }
     }
 }
 
@@ -236,8 +317,14 @@ pub fn tune(
             "tune: expected at least 1 candidate and 1 trial per cell".into(),
         ));
     }
-    let prepared = prepare(scenario, &all_trials(scenario), run)?;
-    let mut alive = candidates(options.candidates, options.seed);
+    if options.target == TuneTarget::Direct && !scenario.methods.contains(&Method::Direct) {
+        return Err(Error::Input(
+            "tune --target direct: the scenario has no direct cells (methods)".into(),
+        ));
+    }
+    let probe = candidates(1, options.seed, options.target)[0].apply(scenario);
+    let prepared = prepare(&probe, &all_trials(&probe), run)?;
+    let mut alive = candidates(options.candidates, options.seed, options.target);
     let mut trials = options.first_trials.min(scenario.trials);
     let mut out = Vec::new();
     for rung in 0.. {
@@ -262,47 +349,33 @@ pub fn tune(
     Ok(out)
 }
 
-/// The evaluations as CSV, one row per candidate and rung.
+/// The evaluations as CSV, one row per candidate and rung; a column per tuned axis.
 pub fn evaluations_csv(evals: &[Evaluation]) -> Vec<u8> {
     let mut w = csv::Writer::from_writer(Vec::new());
-    w.write_record([
-        "rung",
-        "trials_per_cell",
-        "candidate",
-        "observe_n_per_m",
-        "observe_nm_per_rad",
-        "observe_damping",
-        "insert_n_per_m",
-        "insert_nm_per_rad",
-        "insert_damping",
-        "trials",
-        "successes",
-        "success_rate",
-        "peak_fz_n",
-    ])
-    .expect("in-memory csv");
+    let axes = evals.first().map_or(&[][..], |e| e.candidate.target.axes());
+    let head = ["rung", "trials_per_cell", "candidate"].into_iter();
+    let tail = ["trials", "successes", "success_rate", "peak_fz_n"].into_iter();
+    w.write_record(head.chain(axes.iter().map(|a| a.name)).chain(tail))
+        .expect("in-memory csv");
     for e in evals {
         let c = &e.candidate;
-        w.write_record([
-            e.rung.to_string(),
-            e.trials_per_cell.to_string(),
-            c.id.to_string(),
-            format!("{:.1}", c.observe_n_per_m),
-            format!("{:.2}", c.observe_nm_per_rad),
-            format!("{:.3}", c.observe_damping),
-            format!("{:.1}", c.insert_n_per_m),
-            format!("{:.2}", c.insert_nm_per_rad),
-            format!("{:.3}", c.insert_damping),
-            e.trials.to_string(),
-            e.successes.to_string(),
-            format!("{:.4}", e.success_rate),
-            if e.peak_fz_n.is_nan() {
-                String::new()
-            } else {
-                format!("{:.2}", e.peak_fz_n)
-            },
-        ])
-        .expect("in-memory csv");
+        let values = c.values.iter().map(|v| format!("{v:.3}"));
+        let peak = if e.peak_fz_n.is_nan() {
+            String::new()
+        } else {
+            format!("{:.2}", e.peak_fz_n)
+        };
+        let row = [e.rung, e.trials_per_cell, c.id]
+            .map(|n| n.to_string())
+            .into_iter()
+            .chain(values)
+            .chain([
+                e.trials.to_string(),
+                e.successes.to_string(),
+                format!("{:.4}", e.success_rate),
+                peak,
+            ]);
+        w.write_record(row).expect("in-memory csv");
     }
     w.into_inner().expect("in-memory csv")
 }
@@ -323,12 +396,22 @@ mod tests {
 
     #[test]
     fn candidates_stay_in_the_sunrise_ranges() {
-        for c in candidates(20, 1) {
-            let base = "name = \"t\"\ntrials = 1\ngeometries = [\"cross\"]\nclearances_mm = [0.5]\nt_obs_s = [6.0]\nmethods = [\"manifold\"]\n";
-            let s = c.apply(&Scenario::parse(base).unwrap());
-            s.ensure_valid().unwrap();
-            let snippet = Scenario::parse(&format!("{base}{}", c.snippet())).unwrap();
+        let base = "name = \"t\"\ntrials = 1\ngeometries = [\"cross\"]\nclearances_mm = [0.5]\nt_obs_s = [6.0]\nmethods = [\"manifold\", \"direct\"]\n";
+        let scenario = Scenario::parse(base).unwrap();
+        for c in candidates(20, 1, TuneTarget::Gains) {
+            c.apply(&scenario).ensure_valid().unwrap();
+            let snippet = Scenario::parse(&format!("{base}{}", c.snippet(&scenario))).unwrap();
             assert_eq!(snippet.gains.insert.stiffness.unwrap()[2], 2000.0);
+            assert_eq!(snippet.gains.observe.additional_force, None);
+        }
+        for c in candidates(20, 1, TuneTarget::Direct) {
+            let tuned = c.apply(&scenario);
+            tuned.ensure_valid().unwrap();
+            assert_eq!(tuned.methods, vec![Method::Direct]);
+            let snippet = Scenario::parse(&format!("{base}{}", c.snippet(&scenario))).unwrap();
+            let seat = snippet.direct.insertion.seat_force_n.unwrap();
+            assert!((seat - c.get("seat_force_n")).abs() < 0.051, "{seat}");
+            assert_eq!(snippet.gains, scenario.gains, "the method's gains stay");
         }
     }
 }

@@ -1,6 +1,6 @@
 //! `pegtwin campaign`, `merge`, `check` and `tune`.
 
-use super::choices::ReplaysArg;
+use super::choices::{ReplaysArg, TuneTargetChoice};
 use super::progress::Bars;
 use clap::Args;
 use pegtwin::campaign::check::{Baseline, compare, findings_table};
@@ -80,6 +80,10 @@ pub struct TuneArgs {
     /// Seed of the design.
     #[arg(long, default_value_t = TuneOptions::default().seed)]
     pub seed: u64,
+    /// What to tune: the method's observation and insertion gains, or the direct baseline's
+    /// insertion (stiffness, damping, seat force) on the scenario's direct cells.
+    #[arg(long, value_enum, default_value_t = TuneTargetChoice::Gains)]
+    pub target: TuneTargetChoice,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -216,8 +220,14 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
         candidates: args.candidates,
         first_trials: args.first_trials,
         seed: args.seed,
+        target: args.target.into(),
     };
-    let cells = scenario.cells().len();
+    let direct_only = matches!(args.target, TuneTargetChoice::Direct);
+    let cells = scenario
+        .cells()
+        .iter()
+        .filter(|c| !direct_only || c.method == pegtwin::method::config::Method::Direct)
+        .count();
     let evals = campaign::worker_pool(args.threads)?.install(|| {
         tune(&scenario, &options, &run, &|rung, n, trials| {
             eprintln!("rung {rung}: {n} candidates x {} trials", trials * cells);
@@ -242,7 +252,7 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
         best.successes,
         best.trials,
         best.peak_fz_n,
-        best.candidate.snippet()
+        best.candidate.snippet(&scenario)
     );
     Ok(0)
 }

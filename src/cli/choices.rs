@@ -3,6 +3,7 @@
 
 use clap::ValueEnum;
 use pegtwin::campaign::replays::Replays;
+use pegtwin::campaign::tune::TuneTarget;
 use pegtwin::method::config::{Method, Start};
 use pegtwin::method::register::Solver;
 use pegtwin::twin::geometry::mesh::MeshUnits;
@@ -21,6 +22,24 @@ impl From<MethodArg> for Method {
         match m {
             MethodArg::Manifold => Method::Manifold,
             MethodArg::Direct => Method::Direct,
+        }
+    }
+}
+
+/// What `tune` searches.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum TuneTargetChoice {
+    /// The observation and insertion gains of every method.
+    Gains,
+    /// The direct baseline's insertion: stiffness, damping and seat force (the paper tuned it).
+    Direct,
+}
+
+impl From<TuneTargetChoice> for TuneTarget {
+    fn from(t: TuneTargetChoice) -> Self {
+        match t {
+            TuneTargetChoice::Gains => TuneTarget::Gains,
+            TuneTargetChoice::Direct => TuneTarget::Direct,
         }
     }
 }

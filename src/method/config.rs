@@ -81,6 +81,15 @@ pub struct TrialConfig {
     /// The insertion target stops advancing once the estimated |Fz| exceeds this, N (a force
     /// break condition, as Sunrise's `ForceCondition`): the peg has jammed.
     pub insert_stop_force_n: f64,
+    /// Once the tip is within `insert_seat_window_m` of the believed floor, the insertion target
+    /// stops when the estimated |Fz| exceeds this, N (a seat condition: the peg rests on the
+    /// floor with about this force). At or above `insert_stop_force_n` it never acts.
+    pub insert_seat_force_n: f64,
+    /// How far above the believed floor the seat condition arms, m: the belief's z uncertainty.
+    /// The registration does not observe z (its z error follows the hole's z offset, about
+    /// 1.3 mm deeper: docs/method.md, "The insertion's force"), so the default spans the paper's
+    /// 5 mm offset range and that bias with margin.
+    pub insert_seat_window_m: f64,
     /// Success when the final tip depth is within this of the floor, m (paper: 2 mm).
     pub success_eps_m: f64,
     pub registration: RegistrationConfig,
@@ -118,6 +127,8 @@ impl Default for TrialConfig {
             insert_limit_s: 6.0,
             insert_overshoot_m: 5e-3,
             insert_stop_force_n: 40.0,
+            insert_seat_force_n: 5.0,
+            insert_seat_window_m: 8e-3,
             success_eps_m: 2e-3,
             registration: RegistrationConfig::default(),
         }
@@ -168,6 +179,30 @@ impl TrialConfig {
             return Err(Error::Input(format!(
                 "insert_stop_force_n {} N: expected a positive force",
                 self.insert_stop_force_n
+            )));
+        }
+        if !(is_positive(self.insert_speed_m_per_s) && self.insert_speed_m_per_s <= 0.1) {
+            return Err(Error::Input(format!(
+                "insert_speed_m_per_s {} m/s: expected more than 0 and at most 0.1 m/s",
+                self.insert_speed_m_per_s
+            )));
+        }
+        if !(is_positive(self.insert_limit_s) && self.insert_limit_s <= MAX_T_OBS_S) {
+            return Err(Error::Input(format!(
+                "insert_limit_s {} s: expected more than 0 and at most {MAX_T_OBS_S} s",
+                self.insert_limit_s
+            )));
+        }
+        if !is_positive(self.insert_seat_force_n) {
+            return Err(Error::Input(format!(
+                "insert_seat_force_n {} N: expected a positive force",
+                self.insert_seat_force_n
+            )));
+        }
+        if !(self.insert_seat_window_m >= 0.0 && self.insert_seat_window_m <= 0.05) {
+            return Err(Error::Input(format!(
+                "insert_seat_window_m {} m: expected 0 to 0.05 m",
+                self.insert_seat_window_m
             )));
         }
         if !(self.phase1_fraction > 0.0 && self.phase1_fraction <= 1.0) {

@@ -13,7 +13,7 @@
 
 use crate::error::{Error, Result};
 use crate::method::config::{Method, Start, TrialConfig};
-use crate::method::insert::{Insertion, insert};
+use crate::method::insert::{InsertEnd, Insertion, insert};
 use crate::method::manifold::Manifold;
 use crate::method::observe::{Observation, observe};
 use crate::method::register::{RegistrationConfig, register};
@@ -142,6 +142,9 @@ pub struct TrialResult {
     pub mean_fz_n: f64,
     /// |Fz| (estimated) during the insertion every `FZ_PROFILE_DT_S`, N (0.01 N resolution).
     pub insert_fz_n: Vec<f64>,
+    /// Why the insertion's target stopped (none when the trial did not insert).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub insert_end: Option<InsertEnd>,
     pub times: PhaseTimes,
     /// Wall time of the whole trial, s (not part of the deterministic result).
     #[serde(skip)]
@@ -276,6 +279,7 @@ impl Setup {
             peak_fz_n: 0.0,
             mean_fz_n: 0.0,
             insert_fz_n: Vec::new(),
+            insert_end: None,
             times: PhaseTimes::default(),
             wall_s: started.elapsed().as_secs_f64(),
         }
@@ -313,6 +317,7 @@ impl Setup {
                 fz.iter().sum::<f64>() / fz.len() as f64
             },
             insert_fz_n: fz_profile(fz, stages.dt_s),
+            insert_end: (!fz.is_empty()).then_some(stages.insertion.end),
             times: stages.times(),
             ..self.common(pair, config, fault, started)
         }
