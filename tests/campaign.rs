@@ -341,3 +341,40 @@ fn tune_writes_its_table_and_prints_a_usable_snippet() {
     // The snippet parses (the only error left is the shard).
     assert!(stderr(&o).contains("--shard 5/2"), "{}", stderr(&o));
 }
+
+/// With several clearances the summary pools per clearance and over all of them, and the report
+/// draws Fig. 5 and 6 per clearance beside the pooled ones (issue 16, item 4).
+#[test]
+fn several_clearances_give_pooled_rows_and_figures_per_clearance() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (t, cache) = (tmp.path(), tmp.path().join("cache"));
+    let text = "name = \"c\"\ntrials = 1\ngeometries = [\"cross\", \"plug3\"]\n\
+                clearances_mm = [0.5, 1.0]\nt_obs_s = [1.0]\nmethods = [\"direct\"]\n\
+                direct_t_obs_s = 1.0\n";
+    let scenario = write(t, "c.toml", text);
+    let out = t.join("out");
+    let o = campaign(&scenario, &out, &cache, &["--replays", "none"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in ["fig5_errors", "fig6_fz"] {
+        for suffix in ["", "-0.5mm", "-1mm"] {
+            let png = out.join(format!("figures/{f}{suffix}.png"));
+            assert!(png.is_file(), "{} written", png.display());
+        }
+    }
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    let pooled: Vec<(f64, u64)> = summary["pooled"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            (
+                p["clearance_mm"].as_f64().unwrap(),
+                p["trials"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(pooled, vec![(0.5, 2), (1.0, 2), (0.0, 4)]);
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(report.contains("figures/fig6_fz-1mm.png"), "linked");
+}

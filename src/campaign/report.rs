@@ -5,7 +5,9 @@
 //!   orientation error (max |roll|, |pitch|, |yaw|), with the number of trials per bin; bins past
 //!   2.5 deg are drawn red as in the paper (Fig. 5);
 //! - `fig6_fz`: |Fz| during insertion, mean +- 1 std, for successes and failures of each method
-//!   (Fig. 6).
+//!   (Fig. 6);
+//! - with several clearances, `fig5_errors-{c}mm` and `fig6_fz-{c}mm` for each clearance beside
+//!   the pooled ones (the paper pools its 0.1-1.0 mm parts).
 
 use super::summary::{
     AXES, MeanStd, Moments, Pass, Summary, SummaryTally, abs_errors, two_passes, wilson_interval,
@@ -256,25 +258,57 @@ const FZ_GROUPS: [(Method, bool, &str, RGBColor); 4] = [
     (Method::Direct, false, "direct, failure", RED),
 ];
 
-/// What the figures need from the records, gathered over [`two_passes`] (no record is kept).
+/// What the figures of one group of trials need from the records, gathered over
+/// [`two_passes`] (no record is kept).
 #[derive(Clone, Debug)]
 struct FigureTally {
+    /// Which trials: every one (none), or those at one clearance, mm.
+    clearance_mm: Option<f64>,
     position: Bins,
     orientation: Bins,
     fz: [ProfileTally; 4],
 }
 
 impl FigureTally {
-    fn new() -> Self {
+    fn new(clearance_mm: Option<f64>) -> Self {
         FigureTally {
+            clearance_mm,
             position: Bins::new(&POSITION_BINS_MM),
             orientation: Bins::new(&ORIENTATION_BINS_DEG),
             fz: Default::default(),
         }
     }
 
+    /// The figures' file name suffix and title suffix: none pooled, else the clearance.
+    fn suffixes(&self) -> (String, String) {
+        self.clearance_mm
+            .map_or((String::new(), String::new()), |c| {
+                (format!("-{c}mm"), format!(" at {c} mm"))
+            })
+    }
+
+    /// The pooled figures, then one set per clearance when the scenario has several.
+    fn per_clearance(scenario: &Scenario) -> Vec<FigureTally> {
+        let mut clearances: Vec<f64> = Vec::new();
+        for c in scenario.cells() {
+            if !clearances.contains(&c.clearance_mm) {
+                clearances.push(c.clearance_mm);
+            }
+        }
+        if clearances.len() < 2 {
+            clearances.clear();
+        }
+        std::iter::once(None)
+            .chain(clearances.into_iter().map(Some))
+            .map(FigureTally::new)
+            .collect()
+    }
+
     fn add(&mut self, r: &TrialRecord, pass: Pass) {
         let res = &r.result;
+        if self.clearance_mm.is_some_and(|c| c != res.clearance_mm) {
+            return;
+        }
         if let (Pass::Mean, Some(e)) = (pass, abs_errors(r))
             && res.method == Method::Manifold
         {
@@ -359,16 +393,17 @@ fn draw_errors<DB: DrawingBackend>(
 ) -> DrawResult {
     root.fill(&WHITE).map_err(err)?;
     let (left, right) = root.split_horizontally(SIZE.0 / 2);
+    let (_, at) = tally.suffixes();
     draw_binned(
         &left,
-        "Success vs position error",
+        &format!("Success vs position error{at}"),
         "max(|x|, |y|) error (mm)",
         &tally.position,
         None,
     )?;
     draw_binned(
         &right,
-        "Success vs orientation error",
+        &format!("Success vs orientation error{at}"),
         "max(|roll|, |pitch|, |yaw|) error (deg)",
         &tally.orientation,
         Some(CRITICAL_DEG),
@@ -401,7 +436,10 @@ fn draw_fz<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, tally: &FigureTally
         .flat_map(|g| g.2.iter().map(|p| p.1 + p.2))
         .fold(1.0, f64::max);
     let mut chart = ChartBuilder::on(&root)
-        .caption("|Fz| during insertion, mean ± 1 std", ("sans-serif", 22))
+        .caption(
+            format!("|Fz| during insertion, mean ± 1 std{}", tally.suffixes().1),
+            ("sans-serif", 22),
+        )
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(55)
@@ -504,10 +542,10 @@ pub fn write_campaign_report(
 /// from two streaming passes over `source`.
 pub fn write_all(dir: &Path, scenario: &Scenario, source: &dyn RecordSource) -> Result<Summary> {
     let mut cells = SummaryTally::new(scenario);
-    let mut figures = FigureTally::new();
+    let mut figures = FigureTally::per_clearance(scenario);
     two_passes(source, &mut |r, pass| {
         cells.add(r, pass);
-        figures.add(r, pass);
+        figures.iter_mut().for_each(|f| f.add(r, pass));
     })?;
     let summary = cells.finish(scenario);
     let write = crate::files::write_atomically;
@@ -528,7 +566,7 @@ fn write_report(
     dir: &Path,
     scenario: &Scenario,
     summary: &Summary,
-    figures: &FigureTally,
+    figures: &[FigureTally],
 ) -> Result<()> {
     let mut geometries: Vec<String> = Vec::new();
     for c in &summary.cells {
@@ -543,21 +581,25 @@ fn write_report(
         |a| draw_success(a, &geometries, &series),
         |a| draw_success(a, &geometries, &series),
     )?;
-    render(
-        dir,
-        "fig5_errors",
-        |a| draw_errors(a, figures),
-        |a| draw_errors(a, figures),
-    )?;
-    render(
-        dir,
-        "fig6_fz",
-        |a| draw_fz(a, figures),
-        |a| draw_fz(a, figures),
-    )?;
+    for tally in figures {
+        let (name, _) = tally.suffixes();
+        render(
+            dir,
+            &format!("fig5_errors{name}"),
+            |a| draw_errors(a, tally),
+            |a| draw_errors(a, tally),
+        )?;
+        render(
+            dir,
+            &format!("fig6_fz{name}"),
+            |a| draw_fz(a, tally),
+            |a| draw_fz(a, tally),
+        )?;
+    }
     let replays = replays::list(dir)?;
     let manifolds = manifold_figures(dir)?;
-    let page = html(scenario, summary, &replays, &manifolds);
+    let clearances: Vec<f64> = figures.iter().filter_map(|f| f.clearance_mm).collect();
+    let page = html(scenario, summary, &replays, &manifolds, &clearances);
     crate::files::write_atomically(&dir.join("report.html"), page.as_bytes())
 }
 
@@ -623,6 +665,7 @@ fn html(
     summary: &Summary,
     replay_links: &[ReplayLink],
     manifolds: &[String],
+    clearances_mm: &[f64],
 ) -> String {
     let mut rows = String::new();
     let indexed = summary.cells.iter().enumerate().map(|(i, c)| (Some(i), c));
@@ -631,7 +674,7 @@ fn html(
         let fz =
             |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std));
         rows += &format!(
-            "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             escape(&c.cell.geometry),
             c.cell.clearance_mm,
             c.cell.method,
@@ -645,6 +688,8 @@ fn html(
                 .collect::<String>(),
             fz(c.peak_fz_success_n),
             fz(c.peak_fz_failure_n),
+            c.partial_to_full_s
+                .map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std)),
             index.map_or(String::new(), |i| replays::cell_link(replay_links, i)),
         );
     }
@@ -655,7 +700,7 @@ fn html(
         )
     };
     format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th><th>replays</th></tr>\n{rows}</table>\n{f4}{f5}{f6}{mf}{rp}</body></html>\n",
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th><th>partial to full insertion s (successes)</th><th>replays</th></tr>\n{rows}</table>\n{f4}{f5}{f6}{per}{mf}{rp}</body></html>\n",
         name = escape(&scenario.name),
         fp = summary.fingerprint,
         n = scenario.trials,
@@ -674,6 +719,20 @@ fn html(
             "fig6_fz",
             "|Fz| profiles during insertion, success and failure, method vs direct (paper Fig. 6)"
         ),
+        per = clearances_mm
+            .iter()
+            .map(|c| format!(
+                "{}{}",
+                figure(
+                    &format!("fig5_errors-{c}mm"),
+                    &format!("Success rate against the estimate's errors at {c} mm (Fig. 5)")
+                ),
+                figure(
+                    &format!("fig6_fz-{c}mm"),
+                    &format!("|Fz| profiles during insertion at {c} mm (Fig. 6)")
+                )
+            ))
+            .collect::<String>(),
         mf = manifolds
             .iter()
             .map(|name| figure(

@@ -125,6 +125,11 @@ pub struct CellSummary {
     pub peak_fz_failure_n: Option<MeanStd>,
     /// Mean simulated time per phase, s: search, observe, retract, align, insert.
     pub mean_phase_s: [f64; 5],
+    /// Simulated time from the partial insertion to the full one of the successes, s: observe,
+    /// retract, align and insert (the paper: 7-11 s; the registration's wall time comes on top
+    /// on a real cell).
+    #[serde(default)]
+    pub partial_to_full_s: Option<MeanStd>,
 }
 
 /// The whole summary (`summary.json`).
@@ -133,8 +138,9 @@ pub struct Summary {
     pub scenario: String,
     pub fingerprint: String,
     pub cells: Vec<CellSummary>,
-    /// Per method and t_obs, every geometry and clearance pooled (the paper's averages):
-    /// geometry `all`, clearance the common one or 0 when several are pooled.
+    /// Per method and t_obs, every geometry pooled (the paper's averages), geometry `all`: with
+    /// several clearances, first one group per clearance, then every clearance pooled
+    /// (clearance 0); with one, its groups at that clearance.
     pub pooled: Vec<CellSummary>,
 }
 
@@ -157,8 +163,8 @@ pub fn summarise(scenario: &Scenario, source: &dyn RecordSource) -> Result<Summa
 pub struct SummaryTally {
     cells: Vec<CellTally>,
     pooled: Vec<(Condition, CellTally)>,
-    /// The pooled group of each cell (none when nothing is pooled).
-    group_of: Vec<Option<usize>>,
+    /// The pooled groups of each cell (none when nothing is pooled).
+    group_of: Vec<Vec<usize>>,
 }
 
 impl SummaryTally {
@@ -181,7 +187,7 @@ impl SummaryTally {
         if let Some(tally) = self.cells.get_mut(r.cell) {
             tally.add(r, pass);
         }
-        if let Some(&Some(g)) = self.group_of.get(r.cell) {
+        for &g in self.group_of.get(r.cell).into_iter().flatten() {
             self.pooled[g].1.add(r, pass);
         }
     }
@@ -205,41 +211,53 @@ impl SummaryTally {
     }
 }
 
-/// One group per (method, t_obs) over every geometry and clearance, when there are several
-/// pairs (geometry `all`, clearance the common one or 0 when several are pooled), and the group
-/// of each cell.
-fn pooled_groups(cells: &[Condition]) -> (Vec<Condition>, Vec<Option<usize>>) {
+/// The pooled groups (geometry `all`) when there are several pairs: per (method, t_obs) at each
+/// clearance when there are several clearances, then per (method, t_obs) over every clearance
+/// (clearance 0; with one clearance, that clearance); and the groups of each cell.
+fn pooled_groups(cells: &[Condition]) -> (Vec<Condition>, Vec<Vec<usize>>) {
     let mut pairs: Vec<(&str, f64)> = Vec::new();
+    let mut clearances: Vec<f64> = Vec::new();
     for c in cells {
         if !pairs.contains(&(c.geometry.as_str(), c.clearance_mm)) {
             pairs.push((c.geometry.as_str(), c.clearance_mm));
         }
+        if !clearances.contains(&c.clearance_mm) {
+            clearances.push(c.clearance_mm);
+        }
     }
     if pairs.len() < 2 {
-        return (Vec::new(), vec![None; cells.len()]);
+        return (Vec::new(), vec![Vec::new(); cells.len()]);
     }
-    let clearance_mm = if pairs.iter().all(|p| p.1 == pairs[0].1) {
-        pairs[0].1
-    } else {
-        0.0
-    };
     let mut groups: Vec<Condition> = Vec::new();
-    let group_of = cells
+    let mut group = |c: &Condition, clearance_mm: f64| {
+        let same = |g: &Condition| {
+            g.method == c.method && g.t_obs_s == c.t_obs_s && g.clearance_mm == clearance_mm
+        };
+        groups.iter().position(same).unwrap_or_else(|| {
+            groups.push(Condition {
+                geometry: "all".into(),
+                clearance_mm,
+                method: c.method,
+                t_obs_s: c.t_obs_s,
+            });
+            groups.len() - 1
+        })
+    };
+    let several = clearances.len() > 1;
+    let mut group_of: Vec<Vec<usize>> = cells
         .iter()
         .map(|c| {
-            let same = |g: &Condition| g.method == c.method && g.t_obs_s == c.t_obs_s;
-            let g = groups.iter().position(same).unwrap_or_else(|| {
-                groups.push(Condition {
-                    geometry: "all".into(),
-                    clearance_mm,
-                    method: c.method,
-                    t_obs_s: c.t_obs_s,
-                });
-                groups.len() - 1
-            });
-            Some(g)
+            if several {
+                vec![group(c, c.clearance_mm)]
+            } else {
+                Vec::new()
+            }
         })
         .collect();
+    let overall = if several { 0.0 } else { clearances[0] };
+    for (c, of) in cells.iter().zip(&mut group_of) {
+        of.push(group(c, overall));
+    }
     (groups, group_of)
 }
 
@@ -254,6 +272,7 @@ struct CellTally {
     peak_fz_success: Moments,
     peak_fz_failure: Moments,
     phase_sums_s: [f64; 5],
+    partial_to_full_s: Moments,
 }
 
 impl CellTally {
@@ -269,6 +288,11 @@ impl CellTally {
                 &mut self.peak_fz_failure
             };
             peaks.add(pass, res.peak_fz_n);
+        }
+        if res.success {
+            let t = &res.times;
+            let s = t.observe_s + t.retract_s + t.align_s + t.insert_s;
+            self.partial_to_full_s.add(pass, s);
         }
         if pass == Pass::Mean {
             self.trials += 1;
@@ -300,6 +324,7 @@ impl CellTally {
             peak_fz_success_n: self.peak_fz_success.finish(),
             peak_fz_failure_n: self.peak_fz_failure.finish(),
             mean_phase_s: self.phase_sums_s.map(per_trial),
+            partial_to_full_s: self.partial_to_full_s.finish(),
             cell,
         }
     }
@@ -347,6 +372,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
             "retract_s",
             "align_s",
             "insert_s",
+            "partial_to_full_success_s",
         ]
         .map(String::from),
     );
@@ -373,6 +399,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
             row.push(opt(m.map(|m| m.std), 3));
         }
         row.extend(c.mean_phase_s.iter().map(|t| format!("{t:.3}")));
+        row.push(opt(c.partial_to_full_s.map(|m| m.mean), 3));
         w.write_record(&row).expect("in-memory csv");
     }
     w.into_inner().expect("in-memory csv")
@@ -381,7 +408,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
 /// The summary as a text table (what `campaign` prints).
 pub fn summary_table(summary: &Summary) -> String {
     let mut out = format!(
-        "{:<10} {:>6} {:<8} {:>5} {:>9} {:>13} {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11}\n",
+        "{:<10} {:>6} {:<8} {:>5} {:>9} {:>13} {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11} {:>9}\n",
         "geometry",
         "c mm",
         "method",
@@ -395,14 +422,15 @@ pub fn summary_table(summary: &Summary) -> String {
         "p deg",
         "yw deg",
         "Fz ok N",
-        "Fz fail N"
+        "Fz fail N",
+        "to full s"
     );
     for c in summary.cells.iter().chain(&summary.pooled) {
         let mae = |a: usize| opt(c.mae.map(|m| m[a]), 2);
         let fz =
             |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1}±{:.1}", m.mean, m.std));
         out += &format!(
-            "{:<10} {:>6} {:<8} {:>5} {:>4}/{:<4} {:>5.0}-{:<5.0}% {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11}\n",
+            "{:<10} {:>6} {:<8} {:>5} {:>4}/{:<4} {:>5.0}-{:<5.0}% {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11} {:>9}\n",
             c.cell.geometry,
             c.cell.clearance_mm,
             method_name(c.cell.method),
@@ -419,6 +447,7 @@ pub fn summary_table(summary: &Summary) -> String {
             mae(5),
             fz(c.peak_fz_success_n),
             fz(c.peak_fz_failure_n),
+            opt(c.partial_to_full_s.map(|m| m.mean), 1),
         );
     }
     let errors: usize = summary.cells.iter().map(|c| c.error_trials).sum();
@@ -433,6 +462,48 @@ pub fn summary_table(summary: &Summary) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn cell(geometry: &str, clearance_mm: f64, method: Method, t_obs_s: f64) -> Condition {
+        Condition {
+            geometry: geometry.into(),
+            clearance_mm,
+            method,
+            t_obs_s,
+        }
+    }
+
+    #[test]
+    fn several_clearances_pool_per_clearance_and_over_all() {
+        let cells = [
+            cell("cross", 0.1, Method::Manifold, 6.0),
+            cell("cross", 0.1, Method::Direct, 10.0),
+            cell("cross", 0.5, Method::Manifold, 6.0),
+            cell("cross", 0.5, Method::Direct, 10.0),
+            cell("gear", 0.1, Method::Manifold, 6.0),
+            cell("gear", 0.1, Method::Direct, 10.0),
+        ];
+        let (groups, of) = pooled_groups(&cells);
+        let names: Vec<(f64, Method)> = groups.iter().map(|g| (g.clearance_mm, g.method)).collect();
+        assert_eq!(
+            names,
+            [
+                (0.1, Method::Manifold),
+                (0.1, Method::Direct),
+                (0.5, Method::Manifold),
+                (0.5, Method::Direct),
+                (0.0, Method::Manifold),
+                (0.0, Method::Direct),
+            ]
+        );
+        assert!(groups.iter().all(|g| g.geometry == "all"));
+        // gear 0.1 manifold: its clearance's group and the overall one.
+        assert_eq!(of[4], vec![0, 4]);
+        // One clearance: one group per (method, t_obs) at it, as before.
+        let (groups, of) = pooled_groups(&[cells[0].clone(), cells[4].clone()]);
+        assert_eq!(groups.len(), 1);
+        assert_eq!(groups[0].clearance_mm, 0.1);
+        assert_eq!(of, vec![vec![0], vec![0]]);
+    }
 
     #[test]
     fn wilson_matches_reference_values() {
