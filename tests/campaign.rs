@@ -378,3 +378,29 @@ fn several_clearances_give_pooled_rows_and_figures_per_clearance() {
     let report = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(report.contains("figures/fig6_fz-1mm.png"), "linked");
 }
+
+/// Every scenario shipped in `scenarios/` (and under it) loads and passes its checks.
+#[test]
+fn every_shipped_scenario_loads() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+    let mut found = 0;
+    let mut dirs = vec![root];
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.extension().is_some_and(|e| e == "toml") && !is_assembly(&path) {
+                pegtwin::campaign::scenario::Scenario::load(&path)
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                found += 1;
+            }
+        }
+    }
+    assert!(found >= 5, "{found} scenarios");
+}
+
+/// Assembly files live beside scenarios; they have a `[peg]` section.
+fn is_assembly(path: &Path) -> bool {
+    std::fs::read_to_string(path).is_ok_and(|t| t.lines().any(|l| l.trim() == "[peg]"))
+}
