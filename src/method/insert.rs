@@ -95,8 +95,8 @@ pub fn insert(
 /// insertion axis, it stops the target when the tip has stalled and the estimated |Fz| exceeds
 /// `force_n`. It arms within the window above the believed floor, and never before the tip has
 /// come down half the retract: the floor is at least the retract away when the insertion
-/// starts, and a peg held at its start by stiction (the alignment pressed it to a wall; 10-13 N
-/// break it free) has arrived nowhere.
+/// starts, and a peg held at its start by stiction (pressed to a wall by the alignment or the
+/// observation; 10-13 N break it free) has arrived nowhere.
 #[derive(Clone, Copy, Debug)]
 struct SeatCondition {
     armed_after_m: f64,
