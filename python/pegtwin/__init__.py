@@ -170,7 +170,8 @@ def load_trials(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
     ``offset_x_mm`` ... ``offset_yaw_deg``, the estimate's errors ``error_x_mm`` ...
     ``error_yaw_deg`` (NaN for ``direct``), the estimate ``estimate_x_m`` ... ``estimate_yaw_rad``,
     ``fault_reason`` and ``fault_time_s``, ``stopped``, the phase times ``time_search_s`` ...
-    ``time_insert_s``, and ``insert_fz_n`` (the insertion's |Fz| profile, a list per row).
+    ``time_insert_s``, ``insert_fz_n`` (the insertion's |Fz| profile, a list per row), and
+    ``insert_end`` (what ended the insertion: ``seat``, ``jam``, ``travel`` or ``limit``).
     """
     import pandas as pd
 

@@ -125,7 +125,7 @@ def test_a_campaign_writes_its_folder_and_loads_as_dataframes(
         "cell", "trial", "seed", "geometry", "clearance_mm", "method", "t_obs_s", "outcome",
         "success", "final_depth_mm", "peak_fz_n", "mean_fz_n", "offset_x_mm", "offset_yaw_deg",
         "error_x_mm", "error_yaw_deg", "estimate_x_m", "fault_reason", "time_observe_s",
-        "insert_fz_n",
+        "insert_fz_n", "insert_end",
     ]:
         assert column in trials.columns, column
     assert set(trials["method"]) == {"manifold", "direct"}
