@@ -1,5 +1,6 @@
 //! Gain tuning: which impedance gains of the observation and insertion phases give the highest
-//! success rate and the lowest peak force, for a scenario.
+//! success rate and the lowest peak force, for a scenario; or ([`TuneTarget::Direct`]) which
+//! insertion of the direct baseline does, as the paper tuned its baseline (V-B).
 //!
 //! Search: a Latin hypercube over the gains (space-filling, seeded), then successive halving
 //! (Jamieson and Talwalkar 2016, as Hyperband's inner loop and Optuna's pruner): every candidate
@@ -13,7 +14,8 @@
 //! Ranges (within KUKA Sunrise's: 0-5000 N/m, 0-300 N m/rad, damping 0.1-1.0): observation
 //! translational stiffness 300-3000 N/m (x, y; z 1.5 x), rotational 2-50 N m/rad, damping 0.3-1.0;
 //! insertion translational 300-5000 N/m (x, y; z 2000 N/m kept), rotational 10-300 N m/rad,
-//! damping 0.3-1.0. Stiffnesses are drawn log-uniformly.
+//! damping 0.3-1.0. The direct target's are in `DIRECT_AXES`. Stiffnesses and forces are drawn
+//! log-uniformly.
 
 use crate::campaign::records::TrialRecord;
 use crate::campaign::run::{Prepared, RunOptions, all_trials, prepare, run_trials};
