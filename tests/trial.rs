@@ -18,6 +18,13 @@ fn cross(clearance_m: f64) -> pegtwin::twin::geometry::PartPair {
     .unwrap()
 }
 
+/// A trial without a manifold on the cross at 0.5 mm, held by the iiwa 14.
+fn cross_trial(config: &TrialConfig, seed: u64) -> pegtwin::method::trial::TrialResult {
+    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
+    let params = CellParams::default();
+    run_trial(&cross(0.5e-3), &robot, &params, config, None, seed, None).unwrap()
+}
+
 /// A small reference manifold (a few short episodes) for tests.
 fn small_manifold(dir: &Path, clearance_m: f64) -> PathBuf {
     let config = SamplerConfig {
@@ -176,24 +183,13 @@ fn bad_input_is_refused_with_exit_2() {
 
 #[test]
 fn a_search_from_above_finds_the_offset_hole_and_inserts() {
-    let pair = cross(0.5e-3);
-    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
     let config = TrialConfig {
         method: Method::Direct,
         start: pegtwin::method::config::Start::Above,
         t_obs_s: 2.0,
         ..Default::default()
     };
-    let r = run_trial(
-        &pair,
-        &robot,
-        &CellParams::default(),
-        &config,
-        None,
-        3,
-        None,
-    )
-    .unwrap();
+    let r = cross_trial(&config, 3);
     assert_eq!(r.stopped, None, "{:?}", r.stopped);
     assert!(r.times.search_s > 0.0 && r.times.search_s < config.search.limit_s);
     assert!(
@@ -208,24 +204,13 @@ fn a_search_from_above_finds_the_offset_hole_and_inserts() {
 /// the spring force of the target's overshoot past the floor (10 mm at 2000 N/m: 20 N).
 #[test]
 fn an_aligned_insertion_seats_on_the_floor_with_the_seat_force() {
-    let pair = cross(0.5e-3);
-    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
     let config = TrialConfig {
         method: Method::Direct,
         t_obs_s: 1.0,
         offset_range: [0.0; 6],
         ..Default::default()
     };
-    let r = run_trial(
-        &pair,
-        &robot,
-        &CellParams::default(),
-        &config,
-        None,
-        5,
-        None,
-    )
-    .unwrap();
+    let r = cross_trial(&config, 5);
     assert!(r.success, "{}: {:?} mm", r.outcome, r.final_depth_mm);
     assert_eq!(r.insert_end, Some(pegtwin::method::insert::InsertEnd::Seat));
     let seat = config.insert_seat_force_n;
