@@ -66,6 +66,7 @@ impl ConvexPiece {
                 }
             }
         }
+        let edge_dirs = distinct_up_to_sign(edge_dirs);
         ConvexPiece {
             vertices,
             faces,
@@ -181,6 +182,23 @@ impl ConvexPiece {
 }
 
 /// Unit normal of a planar polygon by Newell's method (counter-clockwise gives the outward side).
+/// The directions in `dirs` that are not bit for bit another earlier one or its negation, in
+/// their order. Every edge of a polyhedron is walked once by each of its two faces, in opposite
+/// directions, and a prism's side edges are all parallel: the separating-axis test of
+/// `twin::physics::penetration` takes one axis per distinct direction, so the repeats only cost
+/// (they gave the same overlap: the negated axis projects to the same interval, reversed).
+fn distinct_up_to_sign(dirs: Vec<Vector3<f64>>) -> Vec<Vector3<f64>> {
+    // The key turns -0.0 into 0.0 (adding 0.0) and the direction so that its first non-zero
+    // component is positive: `d` and `-d` share it.
+    let key = |d: &Vector3<f64>| {
+        let first = d.iter().copied().find(|c| *c != 0.0).unwrap_or(0.0);
+        let s = if first < 0.0 { -1.0 } else { 1.0 };
+        [d.x, d.y, d.z].map(|c| (s * c + 0.0).to_bits())
+    };
+    let mut seen = std::collections::HashSet::new();
+    dirs.into_iter().filter(|d| seen.insert(key(d))).collect()
+}
+
 fn newell_normal(pts: &[P3]) -> Vector3<f64> {
     let mut n = Vector3::zeros();
     for k in 0..pts.len() {
@@ -272,4 +290,38 @@ pub fn prisms(regions: &[Region], lower: ZPlane, upper: ZPlane) -> Vec<ConvexPie
         .flat_map(convex_decomposition)
         .map(|f| ConvexPiece::slab(&f, lower, upper))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::twin::geometry::planar::rect;
+
+    #[test]
+    fn a_box_keeps_one_edge_direction_per_axis() {
+        // 6 faces of 4 edges walk 24 edge directions: each of the 12 edges twice, 4 per axis.
+        let cube = ConvexPiece::slab(
+            &rect(0.0, 0.0, 1.0, 2.0),
+            ZPlane::flat(0.0),
+            ZPlane::flat(3.0),
+        );
+        assert_eq!(cube.edge_dirs.len(), 3);
+        for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
+            assert!(cube.edge_dirs.iter().any(|d| d.cross(&axis).norm() == 0.0));
+        }
+    }
+
+    #[test]
+    fn directions_equal_up_to_sign_are_kept_once_and_near_ones_stay() {
+        let d = Vector3::new(0.6, -0.8, 0.0);
+        let near = Vector3::new(0.6, -0.8 + 1e-15, 0.0);
+        let kept = distinct_up_to_sign(vec![
+            d,
+            -d,
+            Vector3::new(-0.0, 0.0, 1.0),
+            Vector3::z(),
+            near,
+        ]);
+        assert_eq!(kept, vec![d, Vector3::new(-0.0, 0.0, 1.0), near]);
+    }
 }
