@@ -11,7 +11,7 @@ use pegtwin::twin::assembly::measure::Seat;
 use pegtwin::twin::assembly::{PairSource, load};
 use pegtwin::twin::geometry::mesh::{MeshUnits, read_mesh};
 use pegtwin::twin::geometry::planar::rect;
-use pegtwin::twin::geometry::solid::{BoundaryMesh, ConvexPiece, ZPlane};
+use pegtwin::twin::geometry::solid::{BoundaryMesh, ConvexPiece, P3, ZPlane};
 use pegtwin::twin::geometry::{Builtin, build_builtin};
 use std::path::Path;
 
@@ -237,6 +237,62 @@ fn validate_passes_a_pair_whose_flange_seats_before_the_tip_reaches_the_floor() 
     assert!(out.status.success(), "{text}{}", stderr(&out));
     assert!(
         text.contains("(full insertion at -20.000 mm, flange on the block)"),
+        "{text}"
+    );
+}
+
+/// The flanged square pin of `square_pair` (20 mm) in a square cavity `clearance_mm` wider, 25 mm
+/// deep, whose mouth carries a `chamfer_mm` x 45 deg chamfer on each side (square corners: the
+/// four chamfered walls stand between four corner blocks).
+fn chamfered_square_pair(dir: &Path, clearance_mm: f64, chamfer_mm: f64) -> std::path::PathBuf {
+    let file = square_pair(dir, (20.0, clearance_mm), true, true, "");
+    let hole = dir.join("hole");
+    std::fs::remove_dir_all(&hole).unwrap();
+    let (h, w, d) = (5.0 + clearance_mm / 2.0, 20.0, 25.0);
+    let mut boxes = vec![[-w, -w, -d - 10.0, w, w, -d]];
+    for (sx, sy) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+        let (x, y) = (sx * h, sy * h);
+        let (xw, yw) = (sx * w, sy * w);
+        boxes.push([x.min(xw), y.min(yw), -d, x.max(xw), y.max(yw), 0.0]);
+    }
+    write_boxes(&hole, &boxes);
+    // A wall's section across it (from the cavity outwards, depth), turned to each side.
+    let section = [
+        (h, -d),
+        (w, -d),
+        (w, 0.0),
+        (h + chamfer_mm, 0.0),
+        (h, -chamfer_mm),
+    ];
+    let turns = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
+    for (k, (cx, cy)) in turns.into_iter().enumerate() {
+        let points: Vec<P3> = section
+            .iter()
+            .flat_map(|&(u, z)| {
+                [-h, h].map(|v| P3::new(cx * u - cy * v, cy * u + cx * v, z) * 1e-3)
+            })
+            .collect();
+        ConvexPiece::from_points(&points)
+            .unwrap()
+            .to_mesh()
+            .write_stl_mm(&hole.join(format!("wall{k}.stl")))
+            .unwrap();
+    }
+    file
+}
+
+/// The rim jam sets the peg down past a chamfer that would guide it in (at 2.5 mm the peg's
+/// edge at the usual 3 mm offset lands on the chamfer and slides 1.8 mm in), and the rest of the
+/// matrix runs as without a chamfer.
+#[test]
+fn validate_passes_a_pair_with_an_entry_chamfer() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = chamfered_square_pair(dir.path(), 1.0, 2.5);
+    let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", stderr(&out));
+    assert!(
+        text.contains("resting on the rim 3.5 mm off the axis (past the mouth's chamfer"),
         "{text}"
     );
 }
