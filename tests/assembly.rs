@@ -297,11 +297,9 @@ fn validate_passes_a_pair_with_an_entry_chamfer() {
     );
 }
 
-#[test]
-fn a_part_that_is_not_convex_is_refused_by_name_not_hulled() {
-    let dir = tempfile::tempdir().unwrap();
-    let file = square_pair(dir.path(), (20.0, 0.4), true, true, "");
-    // The pin and the flange as one part: an L in section, its hull 5 mm off its surface.
+/// The pin and the flange of `square_pair` as one part (an L in section: its hull stands 8 mm
+/// off its surface), turned by `turn` in the file.
+fn write_pin_and_flange(dir: &Path, turn: &Isometry3<f64>) {
     let pin = ConvexPiece::slab(
         &rect(-5e-3, -5e-3, 5e-3, 5e-3),
         ZPlane::flat(0.0),
@@ -315,7 +313,12 @@ fn a_part_that_is_not_convex_is_refused_by_name_not_hulled() {
     let (a, b) = (pin.to_mesh(), flange.to_mesh());
     let n = a.vertices.len() as u32;
     let both = BoundaryMesh {
-        vertices: a.vertices.iter().chain(&b.vertices).copied().collect(),
+        vertices: a
+            .vertices
+            .iter()
+            .chain(&b.vertices)
+            .map(|p| turn * p)
+            .collect(),
         triangles: a
             .triangles
             .iter()
@@ -323,11 +326,46 @@ fn a_part_that_is_not_convex_is_refused_by_name_not_hulled() {
             .chain(b.triangles.iter().map(|t| t.map(|i| i + n)))
             .collect(),
     };
-    std::fs::remove_dir_all(dir.path().join("peg")).unwrap();
-    std::fs::create_dir(dir.path().join("peg")).unwrap();
-    both.write_stl_mm(&dir.path().join("peg/pin_and_flange.stl"))
+    std::fs::remove_dir_all(dir.join("peg")).unwrap();
+    std::fs::create_dir(dir.join("peg")).unwrap();
+    both.write_stl_mm(&dir.join("peg/pin_and_flange.stl"))
         .unwrap();
-    let err = load(&file).unwrap_err().to_string();
+}
+
+/// A part that is not convex is never hulled: as a stack of extrusions along an axis of its
+/// file it is cut into exact prisms (the L: two, 0 mm off its surface; turned 20 deg about x it
+/// is still a stack, along x); turned about two axes, it is refused by name.
+#[test]
+fn a_part_that_is_not_convex_is_decomposed_exactly_or_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = square_pair(dir.path(), (20.0, 0.4), true, true, "");
+    write_pin_and_flange(dir.path(), &Isometry3::identity());
+    let loaded = load(&file).unwrap();
+    assert_eq!(loaded.pair.peg.pieces.len(), 2);
+    let dev = loaded.report.peg.max_deviation_mm;
+    assert!(dev < 1e-6, "{dev} mm");
+    assert!(
+        loaded
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("decomposed exactly into 2 prisms")),
+        "{:?}",
+        loaded.report.warnings
+    );
+    assert!((loaded.report.clearance_min_mm - 0.4).abs() < 1e-4);
+
+    let plain = std::fs::read_to_string(&file).unwrap();
+    let turned = |rpy: [f64; 3]| {
+        write_pin_and_flange(dir.path(), &pose([0.0; 3], rpy));
+        let frame = format!("units = \"mm\"\nframe_rpy_deg = {rpy:?}\n");
+        std::fs::write(&file, plain.replacen("units = \"mm\"\n", &frame, 1)).unwrap();
+        load(&file)
+    };
+    let along_x = turned([20.0, 0.0, 0.0]).unwrap();
+    assert!(along_x.report.peg.max_deviation_mm < 1e-6);
+    assert!((along_x.report.clearance_min_mm - 0.4).abs() < 1e-4);
+    let err = turned([20.0, 30.0, 0.0]).unwrap_err().to_string();
     assert!(
         err.contains("pin_and_flange.stl") && err.contains("it is not convex"),
         "{err}"

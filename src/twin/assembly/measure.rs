@@ -6,9 +6,9 @@
 //! contact; the gaps are distances from points on the peg's surface to the hole's surface.
 
 pub use crate::twin::geometry::Seat;
-use crate::twin::geometry::solid::{ConvexPiece, P3, Solid};
+use crate::twin::geometry::solid::{P3, Solid};
 use crate::twin::physics::penetration::PenetrationProbe;
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::Isometry3;
 use parry3d::math::Vector as V3f;
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::TriMesh;
@@ -23,10 +23,6 @@ const CONTACT_M: f64 = 1e-9;
 const TIP_BAND_M: f64 = 1e-3;
 /// Height of the slices the gap is reported over, m.
 const GAP_SLICE_M: f64 = 0.5e-3;
-/// Spacing of the points sampled on the peg's faces for the gap, m.
-const SAMPLE_SPACING_M: f64 = 0.5e-3;
-/// Most subdivisions of a face triangle for the points inside it.
-const INTERIOR_SUBDIVISIONS: usize = 8;
 
 /// The fit as measured, SI units.
 #[derive(Clone, Debug)]
@@ -195,7 +191,7 @@ fn gaps(peg: &Solid, surface: &TriMesh, engaged_m: f64) -> Option<(f64, f64, (f6
     let slices = ((top - bottom) / GAP_SLICE_M).ceil().max(1.0) as usize;
     let mut slice_min = vec![f64::INFINITY; slices];
     for piece in &peg.pieces {
-        for p in face_samples(piece) {
+        for p in piece.surface_samples() {
             let q = place * p;
             if q.z > top || q.z < bottom {
                 continue;
@@ -211,31 +207,6 @@ fn gaps(peg: &Solid, surface: &TriMesh, engaged_m: f64) -> Option<(f64, f64, (f6
     }
     measured.sort_by(f64::total_cmp);
     Some((measured[0], measured[measured.len() / 2], (-top, -bottom)))
-}
-
-/// Points on a convex piece's faces: along every edge of its face triangles every 0.5 mm (at
-/// most 128 per edge), and a grid of at most 9 x 9 inside each triangle.
-fn face_samples(piece: &ConvexPiece) -> Vec<P3> {
-    let mut out = Vec::new();
-    for t in piece.triangles() {
-        let [a, b, c] = t.map(|i| piece.vertices[i as usize]);
-        for (p, q) in [(a, b), (b, c), (c, a)] {
-            let n = ((q - p).norm() / SAMPLE_SPACING_M).ceil().clamp(1.0, 128.0) as usize;
-            out.extend((0..n).map(|k| p + (q - p) * (k as f64 / n as f64)));
-        }
-        let longest = [(b - a).norm(), (c - b).norm(), (a - c).norm()]
-            .into_iter()
-            .fold(0.0, f64::max);
-        let n = ((longest / SAMPLE_SPACING_M).ceil() as usize).clamp(1, INTERIOR_SUBDIVISIONS);
-        for i in 1..n {
-            for j in 1..n - i {
-                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                let w: Vector3<f64> = (b - a) * u + (c - a) * v;
-                out.push(a + w);
-            }
-        }
-    }
-    out
 }
 
 #[cfg(test)]

@@ -30,7 +30,7 @@ pub use robot::RobotReport;
 
 use crate::error::{Error, Result};
 use crate::pose::rotation_rpy;
-use crate::twin::geometry::mesh::{MeshUnits, convex_part, load_solid, read_mesh_scaled};
+use crate::twin::geometry::mesh::{MeshUnits, load_solid, mesh_part, read_mesh_scaled};
 use crate::twin::geometry::planar::rect;
 use crate::twin::geometry::solid::{ConvexPiece, Solid, ZPlane};
 use crate::twin::geometry::{self, PartPair};
@@ -462,9 +462,9 @@ fn mjcf_solid(
                 for v in &mut soup.vertices {
                     *v = place * *v;
                 }
-                let (piece, dev) = convex_part(&soup, &mesh)?;
-                pieces.push(piece);
-                deviations.push((mesh, dev));
+                let part = mesh_part(&soup, &mesh)?;
+                pieces.extend(part.pieces);
+                deviations.push((mesh, part.deviation_m));
             }
             mjcf::GeomShape::Box { half_extents } => {
                 pieces.push(box_piece(&(half_extents * s), &place, file, body)?);

@@ -248,32 +248,6 @@ fn max_distance_to_surface(points: impl Iterator<Item = P3>, surface: &TriMesh) 
         .fold(0.0, f64::max)
 }
 
-/// Points on a convex piece's surface for deviation checks: its vertices and its face centroids.
-fn piece_surface_samples(piece: &ConvexPiece) -> Vec<P3> {
-    let mut out = piece.vertices.clone();
-    for n in &piece.face_normals {
-        let support = piece
-            .vertices
-            .iter()
-            .map(|p| p.coords.dot(n))
-            .fold(f64::MIN, f64::max);
-        let on_face: Vec<&P3> = piece
-            .vertices
-            .iter()
-            .filter(|p| (p.coords.dot(n) - support).abs() < 1e-7)
-            .collect();
-        if !on_face.is_empty() {
-            let c = on_face
-                .iter()
-                .map(|p| p.coords)
-                .sum::<nalgebra::Vector3<f64>>()
-                / on_face.len() as f64;
-            out.push(P3::from(c));
-        }
-    }
-    out
-}
-
 /// A solid loaded from meshes, with what was measured on the way.
 pub struct LoadedSolid {
     pub solid: Solid,
@@ -357,11 +331,26 @@ fn mesh_files(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// One convex part from its mesh `soup` (read from `file`): the hull of its vertices, and how far
-/// the hull stands off the mesh's own surface, metres (0 for a convex part). A part the physics
-/// cannot take is an error naming the file.
-pub fn convex_part(soup: &TriangleSoup, file: &Path) -> Result<(ConvexPiece, f64)> {
-    let piece = ConvexPiece::from_points(&soup.vertices)
+/// One part of a folder of convex parts (or an MJCF mesh geom), read from `file`: its convex
+/// hull when that stands on the part's own surface; when the hull stands off it (the part is not
+/// convex) and the part is a stack of extrusions along an axis, its exact pieces
+/// (`stack::stack_decomposition`) instead. A part the physics cannot take is an error naming the
+/// file.
+pub struct MeshPart {
+    pub pieces: Vec<ConvexPiece>,
+    /// How far the pieces stand off the part's surface (or leave it uncovered), metres.
+    pub deviation_m: f64,
+    /// How far the part's convex hull stood off its surface, metres (0 for a convex part).
+    pub hull_deviation_m: f64,
+}
+
+/// A hull standing further than this off its part's surface makes the loader try the exact
+/// stack decomposition, metres (1 um: rounding in the files is far below it).
+const HULL_TOLERANCE_M: f64 = 1e-6;
+
+/// Reads one part (see [`MeshPart`]).
+pub fn mesh_part(soup: &TriangleSoup, file: &Path) -> Result<MeshPart> {
+    let hull = ConvexPiece::from_points(&soup.vertices)
         .filter(|p| p.collider_shape().is_some())
         .ok_or_else(|| {
             Error::file(
@@ -370,8 +359,93 @@ pub fn convex_part(soup: &TriangleSoup, file: &Path) -> Result<(ConvexPiece, f64
             )
         })?;
     let surface = trimesh(soup, file)?;
-    let dev = max_distance_to_surface(piece_surface_samples(&piece).into_iter(), &surface);
-    Ok((piece, dev))
+    let hull_dev = max_distance_to_surface(hull.surface_samples().into_iter(), &surface);
+    let stacked = (hull_dev > HULL_TOLERANCE_M)
+        .then(|| super::stack::stack_decomposition(soup))
+        .flatten()
+        .filter(|pieces| pieces.iter().all(|p| p.collider_shape().is_some()))
+        .map(|pieces| (surface_deviation(&pieces, soup, &surface), pieces))
+        .filter(|(dev, _)| *dev < hull_dev);
+    Ok(match stacked {
+        Some((deviation_m, pieces)) => MeshPart {
+            pieces,
+            deviation_m,
+            hull_deviation_m: hull_dev,
+        },
+        None => MeshPart {
+            pieces: vec![hull],
+            deviation_m: hull_dev,
+            hull_deviation_m: hull_dev,
+        },
+    })
+}
+
+/// How far `pieces` deviate from the surface they stand for, metres: the farthest of their
+/// surface samples from it (leaving out the samples on another piece: faces two pieces share
+/// inside the solid are not its surface), and the farthest of its vertices outside every piece.
+fn surface_deviation(pieces: &[ConvexPiece], soup: &TriangleSoup, surface: &TriMesh) -> f64 {
+    let planes: Vec<FacePlanes> = pieces.iter().map(FacePlanes::of).collect();
+    let on_another = |i: usize, p: &P3| {
+        planes
+            .iter()
+            .enumerate()
+            .any(|(j, pl)| j != i && pl.outside(p) <= SHARED_FACE_M)
+    };
+    let outward = max_distance_to_surface(
+        pieces.iter().enumerate().flat_map(|(i, piece)| {
+            let on_another = &on_another;
+            piece
+                .surface_samples()
+                .into_iter()
+                .filter(move |p| !on_another(i, p))
+        }),
+        surface,
+    );
+    let inward = soup
+        .vertices
+        .iter()
+        .map(|p| {
+            planes
+                .iter()
+                .map(|pl| pl.outside(p).max(0.0))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max);
+    outward.max(inward)
+}
+
+/// A sample this close to another piece (or inside it) lies on a face the two share, metres.
+const SHARED_FACE_M: f64 = 1e-9;
+
+/// A convex piece's face planes (outward unit normal, offset), for point tests.
+struct FacePlanes(Vec<(nalgebra::Vector3<f64>, f64)>);
+
+impl FacePlanes {
+    fn of(piece: &ConvexPiece) -> Self {
+        FacePlanes(
+            piece
+                .face_normals
+                .iter()
+                .map(|n| {
+                    let support = piece
+                        .vertices
+                        .iter()
+                        .map(|v| v.coords.dot(n))
+                        .fold(f64::MIN, f64::max);
+                    (*n, support)
+                })
+                .collect(),
+        )
+    }
+
+    /// Distance of `p` outside the piece by its face planes (negative inside; a lower bound
+    /// that is exact in the face regions), metres.
+    fn outside(&self, p: &P3) -> f64 {
+        self.0
+            .iter()
+            .map(|(n, d)| p.coords.dot(n) - d)
+            .fold(f64::MIN, f64::max)
+    }
 }
 
 fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<LoadedSolid> {
@@ -380,8 +454,18 @@ fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<Lo
     let mut max_dev: f64 = 0.0;
     let mut part_deviations = Vec::new();
     for file in mesh_files(dir)? {
-        let (piece, dev) = convex_part(&read_mesh(&file, units)?, &file)?;
-        if dev > half_gap_m.min(1e-4) {
+        let part = mesh_part(&read_mesh(&file, units)?, &file)?;
+        let dev = part.deviation_m;
+        if part.pieces.len() > 1 {
+            warnings.push(format!(
+                "{}: the part is not convex (its hull stands {:.3} mm off its surface): \
+                 decomposed exactly into {} prisms, {:.4} mm off it",
+                file.display(),
+                part.hull_deviation_m * 1e3,
+                part.pieces.len(),
+                dev * 1e3
+            ));
+        } else if dev > half_gap_m.min(1e-4) {
             warnings.push(format!(
                 "{}: the part is not convex: its convex hull stands up to {:.3} mm off its surface{}",
                 file.display(),
@@ -391,7 +475,7 @@ fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<Lo
         }
         max_dev = max_dev.max(dev);
         part_deviations.push((file, dev));
-        pieces.push(piece);
+        pieces.extend(part.pieces);
     }
     Ok(LoadedSolid {
         solid: Solid {
@@ -407,6 +491,34 @@ fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<Lo
 fn load_and_decompose(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<LoadedSolid> {
     let soup = read_mesh(path, units)?;
     let surface = trimesh(&soup, path)?;
+    let pieces = match super::stack::stack_decomposition(&soup) {
+        Some(pieces) => pieces,
+        None => vhacd_pieces(&surface, path)?,
+    };
+    let dev = surface_deviation(&pieces, &soup, &surface);
+    let mut warnings = Vec::new();
+    if dev > half_gap_m {
+        warnings.push(format!(
+            "{}: the convex decomposition deviates up to {:.3} mm from the surface, more than half the clearance ({:.3} mm); supply convex parts from CoACD or V-HACD instead",
+            path.display(),
+            dev * 1e3,
+            half_gap_m * 1e3
+        ));
+    }
+    Ok(LoadedSolid {
+        solid: Solid {
+            pieces,
+            boundary: None,
+        },
+        max_deviation_m: dev,
+        part_deviations: vec![(path.to_path_buf(), dev)],
+        warnings,
+    })
+}
+
+/// The pieces of a part that is no stack of extrusions, by parry's V-HACD (voxel resolution 64:
+/// a bounded cost, under a second for a part of a few thousand triangles).
+fn vhacd_pieces(surface: &TriMesh, path: &Path) -> Result<Vec<ConvexPiece>> {
     let v: Vec<V3f> = surface.vertices().to_vec();
     let params = VHACDParameters {
         resolution: 64,
@@ -437,51 +549,56 @@ fn load_and_decompose(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<
             "the convex decomposition produced no part",
         ));
     }
-    let outward = max_distance_to_surface(pieces.iter().flat_map(piece_surface_samples), &surface);
-    let inward = soup
-        .vertices
-        .iter()
-        .map(|p| {
-            pieces
-                .iter()
-                .map(|piece| distance_outside(piece, p))
-                .fold(f64::INFINITY, f64::min)
-        })
-        .fold(0.0, f64::max);
-    let dev = outward.max(inward);
-    let mut warnings = Vec::new();
-    if dev > half_gap_m {
-        warnings.push(format!(
-            "{}: the convex decomposition deviates up to {:.3} mm from the surface, more than half the clearance ({:.3} mm); supply convex parts from CoACD or V-HACD instead",
-            path.display(),
-            dev * 1e3,
-            half_gap_m * 1e3
-        ));
-    }
-    Ok(LoadedSolid {
-        solid: Solid {
-            pieces,
-            boundary: None,
-        },
-        max_deviation_m: dev,
-        part_deviations: vec![(path.to_path_buf(), dev)],
-        warnings,
-    })
+    Ok(pieces)
 }
 
-/// Distance of a point outside a convex piece (0 inside), by its face planes (a lower bound that
-/// is exact in the face regions).
-fn distance_outside(piece: &ConvexPiece, p: &P3) -> f64 {
-    piece
-        .face_normals
-        .iter()
-        .map(|n| {
-            let support = piece
-                .vertices
-                .iter()
-                .map(|v| v.coords.dot(n))
-                .fold(f64::MIN, f64::max);
-            p.coords.dot(n) - support
-        })
-        .fold(0.0, f64::max)
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::twin::geometry::planar::rect;
+    use crate::twin::geometry::solid::ZPlane;
+
+    /// A 30 x 30 x 2 mm plate with a 10 x 10 mm square hole off its centre, as one part: the
+    /// surfaces of the four boxes around the hole, written as one mesh.
+    fn plate_with_a_hole() -> TriangleSoup {
+        let mm = |x: f64| x * 1e-3;
+        let boxes = [
+            (-15.0, -15.0, 15.0, -2.0),
+            (-15.0, 8.0, 15.0, 15.0),
+            (-15.0, -2.0, -2.0, 8.0),
+            (8.0, -2.0, 15.0, 8.0),
+        ];
+        let mut soup = TriangleSoup {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+        };
+        for (x0, y0, x1, y1) in boxes {
+            let mesh = ConvexPiece::slab(
+                &rect(mm(x0), mm(y0), mm(x1), mm(y1)),
+                ZPlane::flat(0.0),
+                ZPlane::flat(mm(2.0)),
+            )
+            .to_mesh();
+            let n = soup.vertices.len() as u32;
+            soup.vertices.extend(mesh.vertices);
+            soup.triangles
+                .extend(mesh.triangles.iter().map(|t| t.map(|i| i + n)));
+        }
+        soup
+    }
+
+    #[test]
+    fn a_hull_over_a_hole_in_a_face_is_seen_and_the_plate_is_cut_exactly() {
+        let part = mesh_part(&plate_with_a_hole(), Path::new("plate.stl")).unwrap();
+        // The hull's faces span the hole: the middle of the hole is 5 mm from its walls.
+        assert!(
+            (part.hull_deviation_m - 5e-3).abs() < 0.1e-3,
+            "{}",
+            part.hull_deviation_m
+        );
+        assert!(part.pieces.len() >= 4, "{}", part.pieces.len());
+        assert!(part.deviation_m < 1e-9, "{}", part.deviation_m);
+        let volume: f64 = part.pieces.iter().map(|p| p.volume()).sum();
+        assert!((volume / (30.0 * 30.0 * 2.0e-9 - 100.0 * 2.0e-9) - 1.0).abs() < 1e-6);
+    }
 }

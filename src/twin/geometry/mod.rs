@@ -9,6 +9,7 @@ pub mod mesh;
 pub mod planar;
 pub mod profile;
 pub mod solid;
+pub mod stack;
 
 use crate::error::{Error, Result};
 use planar::{P2, Region, difference, offset_left, rect, simplify_ring, union};
