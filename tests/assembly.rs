@@ -241,6 +241,19 @@ fn validate_passes_a_pair_whose_flange_seats_before_the_tip_reaches_the_floor() 
     );
 }
 
+/// A bare 10 mm square pin (no holder) held by the free-peg rig at 0.3 kg turns fast about its
+/// axis (2000 rad/s of impedance damping against a 1 ms step): the rig halves its step, and the
+/// tilted cases, which went 3.9 mm into the walls at 1 ms, pass.
+#[test]
+fn validate_steps_a_bare_slender_pin_finer_and_passes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = square_pair(dir.path(), (20.0, 1.0), false, true, "");
+    let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", stderr(&out));
+    assert!(text.contains("step 0.5 ms"), "{text}");
+}
+
 /// The flanged square pin of `square_pair` (20 mm) in a square cavity `clearance_mm` wider, 25 mm
 /// deep, whose mouth carries a `chamfer_mm` x 45 deg chamfer on each side (square corners: the
 /// four chamfered walls stand between four corner blocks).

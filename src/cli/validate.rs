@@ -83,8 +83,11 @@ fn print_arm_validation(r: &ArmValidationReport) {
 }
 fn print_validation(r: &ValidationReport) {
     println!(
-        "validate {} at {} mm clearance (penetration limit {:.4} mm)",
-        r.geometry, r.clearance_mm, r.penetration_limit_mm
+        "validate {} at {} mm clearance (penetration limit {:.4} mm; step {} ms)",
+        r.geometry,
+        r.clearance_mm,
+        r.penetration_limit_mm,
+        r.physics.dt_s * 1e3
     );
     for c in &r.cases {
         println!(
