@@ -226,15 +226,21 @@ fn where_the_peg_seats_is_measured_flange_floor_or_through() {
     assert!(text.contains("a through hole's success depth"), "{text}");
 }
 
+/// `pegtwin validate --assembly FILE`, which must pass: its report.
+fn validate_passes(file: &Path) -> String {
+    let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "{text}{}", stderr(&out));
+    text
+}
+
 /// At 1 mm: at 0.4 mm this sharp-edged square pin's lateral press reads 21 um of exact
 /// penetration against the 20 um bar (the seat, the subject here, passes there too).
 #[test]
 fn validate_passes_a_pair_whose_flange_seats_before_the_tip_reaches_the_floor() {
     let dir = tempfile::tempdir().unwrap();
     let file = square_pair(dir.path(), (20.0, 1.0), true, true, "");
-    let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{text}{}", stderr(&out));
+    let text = validate_passes(&file);
     assert!(
         text.contains("(full insertion at -20.000 mm, flange on the block)"),
         "{text}"
@@ -248,9 +254,7 @@ fn validate_passes_a_pair_whose_flange_seats_before_the_tip_reaches_the_floor() 
 fn validate_steps_a_bare_slender_pin_finer_and_passes_it() {
     let dir = tempfile::tempdir().unwrap();
     let file = square_pair(dir.path(), (20.0, 1.0), false, true, "");
-    let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{text}{}", stderr(&out));
+    let text = validate_passes(&file);
     assert!(text.contains("step 0.5 ms"), "{text}");
 }
 
@@ -301,9 +305,7 @@ fn chamfered_square_pair(dir: &Path, clearance_mm: f64, chamfer_mm: f64) -> std:
 fn validate_passes_a_pair_with_an_entry_chamfer() {
     let dir = tempfile::tempdir().unwrap();
     let file = chamfered_square_pair(dir.path(), 1.0, 2.5);
-    let out = pegtwin(&["validate", "--assembly", file.to_str().unwrap()]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{text}{}", stderr(&out));
+    let text = validate_passes(&file);
     assert!(
         text.contains("resting on the rim 3.5 mm off the axis (past the mouth's chamfer"),
         "{text}"

@@ -116,7 +116,7 @@ impl FreePegRig {
 
     /// The fastest mode of the rig's impedance, rad/s: the rotational spring about the peg's
     /// axis of least inertia, sqrt(k / I), or its damping rate c / I where that is faster.
-    pub fn fastest_mode_rad_per_s(&self) -> f64 {
+    fn fastest_mode_rad_per_s(&self) -> f64 {
         let k = self.gains.rot_stiffness_nm_per_rad;
         (k / self.inertia_min)
             .sqrt()
@@ -449,7 +449,7 @@ const MAX_MODE_TIMES_STEP: f64 = 1.0;
 /// The physics the rig runs at: `params`, with the step divided by the least whole number that
 /// brings the rig's fastest mode within `MAX_MODE_TIMES_STEP` (a bare slender pin, whose yaw
 /// inertia is small: a 10 mm square pin at 1 ms stands at 2.0).
-pub fn rig_params(pair: &PartPair, params: &PhysicsParams, gains: FreePegGains) -> PhysicsParams {
+fn rig_params(pair: &PartPair, params: &PhysicsParams, gains: FreePegGains) -> PhysicsParams {
     let rig = FreePegRig::new(pair, params, &Isometry3::identity(), gains);
     let split = (rig.fastest_mode_rad_per_s() * params.dt_s / MAX_MODE_TIMES_STEP).ceil();
     PhysicsParams {

@@ -150,7 +150,7 @@ fn chain(segments: &[(P2, P2)]) -> Option<Vec<Vec<P2>>> {
             ring.push(segments[i].0);
             i = *next.get(&key(&segments[i].1))?;
         }
-        if i != start && !ring.is_empty() {
+        if i != start {
             return None;
         }
         if ring.len() >= 3 {
