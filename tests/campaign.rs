@@ -379,6 +379,50 @@ fn several_clearances_give_pooled_rows_and_figures_per_clearance() {
     assert!(report.contains("figures/fig6_fz-1mm.png"), "linked");
 }
 
+/// The manifolds a campaign builds side by side are the files each pair's build gives alone.
+#[test]
+fn manifolds_built_side_by_side_are_the_files_built_alone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let scenario = |clearances: &str| {
+        format!(
+            "name = \"m\"\ntrials = 1\ngeometries = [\"cross\"]\nclearances_mm = {clearances}\n\
+             t_obs_s = [1.0]\nmethods = [\"manifold\"]\n[manifold]\npoints = 1000\n\
+             episodes = 3\nepisode_s = 4.0\n"
+        )
+    };
+    let together = t.join("together");
+    let s = write(t, "both.toml", &scenario("[0.5, 1.0]"));
+    let o = campaign(&s, &t.join("out"), &together, &["--replays", "none"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let alone = t.join("alone");
+    for (i, c) in ["[0.5]", "[1.0]"].into_iter().enumerate() {
+        let s = write(t, &format!("alone{i}.toml"), &scenario(c));
+        let o = campaign(
+            &s,
+            &t.join(format!("out{i}")),
+            &alone,
+            &["--replays", "none"],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let files = |dir: &Path| {
+        let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                let name = e.file_name().to_string_lossy().into_owned();
+                (name, std::fs::read(e.path()).unwrap())
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    let (a, b) = (files(&together), files(&alone));
+    assert_eq!(a.len(), 2, "two manifolds built");
+    assert!(a == b, "the same files, byte for byte");
+}
+
 /// Every scenario shipped in `scenarios/` (and under it) loads and passes its checks.
 #[test]
 fn every_shipped_scenario_loads() {

@@ -194,7 +194,11 @@ impl Prepared {
     }
 }
 
-/// Builds the pairs and loads (or builds and caches) the manifolds of `trials`.
+/// Builds the pairs and loads (or builds and caches) the manifolds of `trials`. The missing
+/// manifolds are built side by side: every episode of every build goes to the one pool, so the
+/// cores do not idle at the end of each build while its last episodes run (issue 17). Each file
+/// is the same as when built alone; when builds fail, the first failing pair's error (in the
+/// scenario's order) is returned, after the others were built and cached.
 pub fn prepare(
     scenario: &Scenario,
     trials: &[TrialSpec],
@@ -203,7 +207,7 @@ pub fn prepare(
     let cells = scenario.cells();
     let mut pairs = BTreeMap::new();
     let mut robots = BTreeMap::new();
-    let mut manifolds = BTreeMap::new();
+    let mut registering = Vec::new();
     for spec in trials {
         let cell = &cells[spec.cell];
         let key = pair_key(cell);
@@ -211,17 +215,26 @@ pub fn prepare(
             pairs.insert(key.clone(), scenario.pair(cell)?);
             robots.insert(key.clone(), scenario.robot(cell).load()?.0);
         }
-        if cell.method == Method::Manifold && !manifolds.contains_key(&key) {
-            let m = cache::resolve(
-                &pairs[&key],
-                &robots[&key],
+        if cell.method == Method::Manifold && !registering.iter().any(|(k, _)| *k == key) {
+            registering.push((key, scenario.cell_params_for(cell)));
+        }
+    }
+    let built: Vec<Result<Manifold>> = registering
+        .par_iter()
+        .map(|(key, params)| {
+            cache::resolve(
+                &pairs[key],
+                &robots[key],
                 &scenario.manifold,
-                &scenario.cell_params_for(cell),
+                params,
                 Some(&options.cache_dir),
                 options.progress,
-            )?;
-            manifolds.insert(key, m);
-        }
+            )
+        })
+        .collect();
+    let mut manifolds = BTreeMap::new();
+    for ((key, _), manifold) in registering.into_iter().zip(built) {
+        manifolds.insert(key, manifold?);
     }
     Ok(Prepared {
         pairs,

@@ -9,10 +9,13 @@ use std::io::IsTerminal;
 use std::path::Path;
 use std::sync::Mutex;
 
-/// The bar of the manifold build or of the trials, whichever runs.
+/// The bar of the manifold builds (one bar for the builds that run side by side) or of the
+/// trials, whichever runs.
 pub struct Bars {
     shown: bool,
     bar: Mutex<Option<ProgressBar>>,
+    /// Manifold builds started and not finished.
+    builds: Mutex<usize>,
 }
 
 impl Bars {
@@ -25,6 +28,7 @@ impl Bars {
         Bars {
             shown,
             bar: Mutex::new(None),
+            builds: Mutex::new(0),
         }
     }
 
@@ -60,12 +64,21 @@ impl BuildProgress for Bars {
         if !self.shown {
             return;
         }
-        eprintln!(
+        let message = format!(
             "building the reference manifold of {} at {} mm into {} (once)",
             pair.name,
             pair.clearance_m * 1e3,
             path.display()
         );
+        let mut builds = self.builds.lock().expect("no bar user panicked");
+        *builds += 1;
+        // Builds that run side by side share one bar.
+        if let Some(b) = self.bar.lock().expect("no bar user panicked").as_ref() {
+            b.println(message);
+            b.inc_length(episodes as u64);
+            return;
+        }
+        eprintln!("{message}");
         self.start(styled(
             episodes,
             "[{bar:40}] {pos}/{len} episodes, {elapsed} elapsed, ETA {eta}",
@@ -77,7 +90,11 @@ impl BuildProgress for Bars {
     }
 
     fn build_finished(&self) {
-        self.finish();
+        let mut builds = self.builds.lock().expect("no bar user panicked");
+        *builds = builds.saturating_sub(1);
+        if *builds == 0 {
+            self.finish();
+        }
     }
 }
 
