@@ -251,6 +251,11 @@ fn manifold_build_samples_contacts_inside_the_hole_deterministically() {
     assert_eq!(v["points"], 400);
     assert_eq!(v["meta"]["geometry"], "cross");
     assert!((v["meta"]["clearance_m"].as_f64().unwrap() - 0.5e-3).abs() < 1e-12);
+    let source = v["meta"]["source"].as_str().unwrap();
+    assert!(
+        source.contains("from 2 episodes (0 faulted, dropped)"),
+        "the build's faults are kept in its metadata: {source}"
+    );
     let r = &v["ranges_m_rad"];
     for axis in 0..2 {
         for end in 0..2 {

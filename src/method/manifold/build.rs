@@ -355,8 +355,11 @@ pub fn build(
         metric,
         normal_k: DEFAULT_NORMAL_K,
         source: format!(
-            "pegtwin manifold build: {} raw contact poses, voxel-grid downsampled; sampler {}",
+            "pegtwin manifold build: {} raw contact poses from {} episodes ({} faulted, dropped), \
+             voxel-grid downsampled; sampler {}",
             raw.len(),
+            config.episodes,
+            faults.len(),
             serde_json::to_string(config).expect("config serialises")
         ),
         seed: Some(seed),
