@@ -90,8 +90,11 @@ impl BuildProgress for Bars {
     }
 
     fn build_finished(&self) {
+        if !self.shown {
+            return;
+        }
         let mut builds = self.builds.lock().expect("no bar user panicked");
-        *builds = builds.saturating_sub(1);
+        *builds -= 1;
         if *builds == 0 {
             self.finish();
         }
