@@ -81,6 +81,10 @@ pub struct Scenario {
     pub sensors: Option<SensorParams>,
     #[serde(default)]
     pub physics: PhysicsOverride,
+    /// Physics for some pairs only, over `[physics]` (a pair whose contact solve needs more
+    /// passes than the rest, so that the others keep their physics and their records).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pair_physics: Vec<PairPhysics>,
     #[serde(default)]
     pub registration: Option<RegistrationConfig>,
     /// The insertion's motion and break conditions, for every method.
@@ -255,6 +259,38 @@ pub struct PhysicsOverride {
     pub friction: Option<f64>,
 }
 
+/// `[[pair_physics]]`: physics parameters for one geometry (or assembly), at one clearance or
+/// at all of them, applied over the scenario's `[physics]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PairPhysics {
+    /// A built-in geometry of `geometries` or an assembly's name.
+    pub geometry: String,
+    /// One of `clearances_mm`; every clearance when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearance_mm: Option<f64>,
+    /// The parameters to replace, e.g. `{ pgs_iterations = 8 }`.
+    pub physics: PhysicsOverride,
+}
+
+impl PairPhysics {
+    fn matches(&self, cell: &Condition) -> bool {
+        self.geometry == cell.geometry && self.clearance_mm.is_none_or(|c| c == cell.clearance_mm)
+    }
+}
+
+impl PhysicsOverride {
+    /// `params` with the fields given here replaced.
+    fn apply(&self, params: &mut CellParams) {
+        let ph = &mut params.physics;
+        ph.dt_s = self.dt_s.unwrap_or(ph.dt_s);
+        ph.solver_iterations = self.solver_iterations.unwrap_or(ph.solver_iterations);
+        ph.pgs_iterations = self.pgs_iterations.unwrap_or(ph.pgs_iterations);
+        ph.contact_frequency_hz = self.contact_frequency_hz.unwrap_or(ph.contact_frequency_hz);
+        ph.friction = self.friction.unwrap_or(ph.friction);
+    }
+}
+
 /// One condition of the experiment, a cell of its table (named `Condition` so as not to be
 /// confused with the robot cell): the trials that share geometry, clearance, method and t_obs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -342,10 +378,14 @@ impl Scenario {
             .map_or_else(RobotSpec::default, |a| a.robot.clone())
     }
 
-    /// The cell parameters of `cell`'s trials and manifold: [`Scenario::cell_params`] with the
-    /// hole where its robot's cell stands it.
+    /// The cell parameters of `cell`'s trials and manifold: [`Scenario::cell_params`] with its
+    /// pair's `[[pair_physics]]` over them, and the hole where its robot's cell stands it.
     pub fn cell_params_for(&self, cell: &Condition) -> CellParams {
-        self.cell_params().placed_for(&self.robot(cell))
+        let mut p = self.cell_params();
+        if let Some(o) = self.pair_physics.iter().find(|o| o.matches(cell)) {
+            o.physics.apply(&mut p);
+        }
+        p.placed_for(&self.robot(cell))
     }
 
     fn assembly_of(&self, cell: &Condition) -> Option<&assembly::Assembly> {
@@ -430,6 +470,7 @@ impl Scenario {
         self.insertion.ensure_valid("insertion")?;
         self.direct.insertion.ensure_valid("direct.insertion")?;
         self.cell_params().ensure_valid()?;
+        self.ensure_pair_physics_valid()?;
         for cell in self.cells() {
             self.trial_config(&cell)
                 .ensure_valid()
@@ -453,6 +494,40 @@ impl Scenario {
                     pair.name
                 )));
             }
+        }
+        Ok(())
+    }
+
+    /// Every `[[pair_physics]]` names a pair of the scenario, once, and its parameters are in
+    /// range.
+    fn ensure_pair_physics_valid(&self) -> Result<()> {
+        let cells = self.cells();
+        for (k, o) in self.pair_physics.iter().enumerate() {
+            let at = match o.clearance_mm {
+                Some(c) => format!("geometry \"{}\" at clearance_mm = {c}", o.geometry),
+                None => format!("geometry \"{}\"", o.geometry),
+            };
+            let field = format!("pair_physics[{k}]");
+            let Some(cell) = cells.iter().find(|c| o.matches(c)) else {
+                return Err(Error::Input(format!(
+                    "{field}: {at} is not a pair of this scenario: expected a name of `geometries` \
+                     or of an assembly, and a clearance of `clearances_mm` (or none for all)"
+                )));
+            };
+            let overlaps = |p: &PairPhysics| {
+                p.geometry == o.geometry
+                    && (p.clearance_mm.is_none()
+                        || o.clearance_mm.is_none()
+                        || p.clearance_mm == o.clearance_mm)
+            };
+            if self.pair_physics[..k].iter().any(overlaps) {
+                return Err(Error::Input(format!(
+                    "{field}: {at} is given physics twice; give each pair one entry"
+                )));
+            }
+            self.cell_params_for(cell)
+                .ensure_valid()
+                .map_err(|e| Error::Input(format!("{field}: {e}")))?;
         }
         Ok(())
     }
@@ -549,13 +624,7 @@ impl Scenario {
         if let Some(s) = &self.sensors {
             p.sensors = s.clone();
         }
-        let o = &self.physics;
-        let ph = &mut p.physics;
-        ph.dt_s = o.dt_s.unwrap_or(ph.dt_s);
-        ph.solver_iterations = o.solver_iterations.unwrap_or(ph.solver_iterations);
-        ph.pgs_iterations = o.pgs_iterations.unwrap_or(ph.pgs_iterations);
-        ph.contact_frequency_hz = o.contact_frequency_hz.unwrap_or(ph.contact_frequency_hz);
-        ph.friction = o.friction.unwrap_or(ph.friction);
+        self.physics.apply(&mut p);
         p
     }
 
@@ -676,5 +745,85 @@ methods = ["manifold", "direct"]
         let c = Scenario::parse(&MINIMAL.replace("trials = 2", "trials = 3")).unwrap();
         assert_eq!(a.fingerprint(), b.fingerprint());
         assert_ne!(a.fingerprint(), c.fingerprint());
+    }
+
+    const TWO_PAIRS: &str = r#"
+name = "t"
+trials = 2
+geometries = ["cross", "gear"]
+clearances_mm = [0.1, 0.5]
+t_obs_s = [6.0]
+methods = ["manifold"]
+
+[physics]
+friction = 0.2
+"#;
+
+    fn cell(geometry: &str, clearance_mm: f64) -> Condition {
+        Condition {
+            geometry: geometry.into(),
+            clearance_mm,
+            method: Method::Manifold,
+            t_obs_s: 6.0,
+        }
+    }
+
+    #[test]
+    fn pair_physics_replaces_the_named_pairs_physics_only() {
+        let text = format!(
+            "{TWO_PAIRS}\n[[pair_physics]]\ngeometry = \"gear\"\nclearance_mm = 0.1\n\
+             physics = {{ pgs_iterations = 8 }}\n"
+        );
+        let s = Scenario::parse(&text).unwrap();
+        let gear = s.cell_params_for(&cell("gear", 0.1)).physics;
+        assert_eq!((gear.pgs_iterations, gear.friction), (8, 0.2));
+        for (g, c) in [("gear", 0.5), ("cross", 0.1), ("cross", 0.5)] {
+            let other = s.cell_params_for(&cell(g, c)).physics;
+            assert_eq!(other, s.cell_params().physics, "{g} {c}");
+        }
+        // Without a clearance it holds at every clearance of the geometry.
+        let every = text.replace("clearance_mm = 0.1\n", "");
+        let s = Scenario::parse(&every).unwrap();
+        assert_eq!(
+            s.cell_params_for(&cell("gear", 0.5)).physics.pgs_iterations,
+            8
+        );
+        // A scenario without it keeps its fingerprint (campaigns resume across this change).
+        let plain = Scenario::parse(TWO_PAIRS).unwrap();
+        assert!(
+            !serde_json::to_string(&plain)
+                .unwrap()
+                .contains("pair_physics")
+        );
+    }
+
+    #[test]
+    fn pair_physics_errors_name_the_entry_and_what_was_expected() {
+        let entry = |g: &str, c: &str, p: &str| {
+            format!("\n[[pair_physics]]\ngeometry = \"{g}\"\n{c}physics = {{ {p} }}\n")
+        };
+        let cases = [
+            (
+                entry("key", "", "pgs_iterations = 8"),
+                "pair_physics[0]: geometry \"key\"",
+            ),
+            (
+                entry("gear", "clearance_mm = 0.2\n", "pgs_iterations = 8"),
+                "not a pair of this scenario",
+            ),
+            (
+                entry("gear", "", "pgs_iterations = 0"),
+                "pair_physics[0]: physics.pgs_iterations",
+            ),
+            (
+                entry("gear", "", "friction = 0.1") + &entry("gear", "clearance_mm = 0.1\n", ""),
+                "pair_physics[1]: geometry \"gear\" at clearance_mm = 0.1 is given physics twice",
+            ),
+            (entry("gear", "", "passes = 8"), "unknown field `passes`"),
+        ];
+        for (extra, want) in cases {
+            let e = Scenario::parse(&format!("{TWO_PAIRS}{extra}")).unwrap_err();
+            assert!(e.to_string().contains(want), "{want}: {e}");
+        }
     }
 }
