@@ -8,11 +8,11 @@ use pegtwin::campaign::records::{TrialsFile, index_records};
 use pegtwin::campaign::run::{self as campaign, CampaignOptions, RunOptions, Shard};
 use pegtwin::campaign::scenario::Scenario;
 use pegtwin::campaign::tune::{TuneOptions, tune};
+use pegtwin::campaign::usage::Stopwatch;
 use pegtwin::campaign::{report, summary};
 use pegtwin::error::{Error, Result};
 use pegtwin::method::manifold::cache;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(Args)]
 pub struct CampaignArgs {
@@ -110,22 +110,23 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
     };
     let bars = Bars::on_terminal();
     let run = run_options(&args.cache_dir, &bars)?;
-    let started = Instant::now();
     let options = CampaignOptions {
         shard,
         resume: args.resume,
         replays: args.replays.into(),
     };
-    let outcome = campaign::worker_pool(args.threads)?
-        .install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
+    let pool = campaign::worker_pool(args.threads)?;
+    let watch = Stopwatch::start(pool.current_num_threads());
+    let outcome = pool.install(|| campaign::campaign(&scenario, &args.out, options, &run))?;
+    let usage = watch.usage();
     let summary =
         report::write_campaign_report(&args.out, &scenario, &outcome.trials, &run.cache_dir)?;
     print!("{}", summary::summary_table(&summary));
     println!(
-        "{} trials ({} run now) in {:.1} s; results in {}",
+        "{} trials ({} run now) in {}; results in {}",
         outcome.count,
         outcome.ran,
-        started.elapsed().as_secs_f64(),
+        usage.describe(),
         args.out.join("report.html").display()
     );
     Ok(0)
