@@ -256,135 +256,166 @@ fn rim_offset(probe: &PenetrationProbe, pair: &PartPair) -> (f64, bool) {
 }
 
 /// The cases for `pair` (a through hole has no floor to press: its floor press is left out).
+/// How far the insertion cases push below the floor, and the floor press presses into it, m.
+const PRESS_M: f64 = 1e-3;
+/// The descent speed of the insertion and rim cases, m/s.
+const DESCENT_M_PER_S: f64 = 20e-3;
+/// How far past the wall the lateral press targets the tip, m.
+const WALL_OFFSET_M: f64 = 1e-3;
+
+/// The free-peg cases in their report order (the floor press only where the peg seats on a
+/// floor).
 fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec<Case> {
-    let depth = pair.cavity_depth_m;
-    let stop = pair.seat.describe();
-    let half_gap = pair.clearance_m / 2.0;
     let k = gains.stiffness_n_per_m;
-    let press = 1e-3;
-    let speed = 20e-3;
-    let insertion_time = (depth + press) / speed;
-    let full_depth = move |tip: &Isometry3<f64>, _: f64, _: &Vector3<f64>| {
-        let z = tip.translation.vector.z;
-        (
-            z <= -depth + 0.1e-3,
-            format!(
-                "tip at z = {:.3} mm (full insertion at {:.3} mm, {})",
-                z * 1e3,
-                -depth * 1e3,
-                stop
-            ),
-        )
-    };
-    let descend = move |z0: f64| -> Box<dyn Fn(f64) -> Vector3<f64>> {
-        Box::new(move |t: f64| Vector3::new(0.0, 0.0, (z0 - speed * t).max(-depth - press)))
-    };
-    let tilted = |deg: f64| {
+    let mut cases = vec![
+        insertion_case(
+            pair,
+            "aligned_insertion",
+            "reaches full depth from 2 mm partial insertion".into(),
+            upright(0.0, 0.0, -2e-3),
+        ),
+        lateral_press_case(pair, k),
+    ];
+    for deg in [1.0, 3.0] {
         let tilt = Isometry3::from_parts(
             Translation3::new(0.0, 0.0, -2e-3),
-            UnitQuaternion::from_euler_angles(deg.to_radians(), 0.0, 0.0),
+            UnitQuaternion::from_euler_angles(f64::to_radians(deg), 0.0, 0.0),
         );
-        lift_until_free(probe, pair, &Isometry3::identity(), tilt)
-    };
+        cases.push(insertion_case(
+            pair,
+            if deg == 1.0 {
+                "tilted_1deg"
+            } else {
+                "tilted_3deg"
+            },
+            format!("starts tilted {deg} deg, aligns and reaches full depth"),
+            lift_until_free(probe, pair, &Isometry3::identity(), tilt),
+        ));
+    }
+    cases.push(rim_jam_case(pair, probe));
+    if pair.seat != Seat::Through {
+        cases.push(floor_press_case(pair, k));
+    }
+    cases
+}
+
+/// A descent at 20 mm/s from `start` to 1 mm below the floor, judged by the tip reaching full
+/// depth.
+fn insertion_case(
+    pair: &PartPair,
+    name: &'static str,
+    expected: String,
+    start: Isometry3<f64>,
+) -> Case {
+    let depth = pair.cavity_depth_m;
+    let stop = pair.seat.describe();
+    let z0 = -2e-3;
+    Case {
+        name,
+        expected,
+        start,
+        target: Box::new(move |t: f64| {
+            Vector3::new(0.0, 0.0, (z0 - DESCENT_M_PER_S * t).max(-depth - PRESS_M))
+        }),
+        duration_s: (depth + PRESS_M) / DESCENT_M_PER_S + 0.5,
+        judge: Box::new(move |tip, _, _| {
+            let z = tip.translation.vector.z;
+            (
+                z <= -depth + 0.1e-3,
+                format!(
+                    "tip at z = {:.3} mm (full insertion at {:.3} mm, {})",
+                    z * 1e3,
+                    -depth * 1e3,
+                    stop
+                ),
+            )
+        }),
+    }
+}
+
+/// Pressed 1 mm sideways at 10 mm depth: the wall holds the tip within c/2 of the axis and
+/// carries at least half the impedance's force.
+fn lateral_press_case(pair: &PartPair, k: f64) -> Case {
+    let half_gap = pair.clearance_m / 2.0;
+    Case {
+        name: "lateral_press",
+        expected: format!(
+            "pressed 1 mm sideways at 10 mm depth, stays in the hole: tip within c/2 = {:.3} mm of the axis",
+            half_gap * 1e3
+        ),
+        start: upright(0.0, 0.0, -10e-3),
+        target: Box::new(move |_| Vector3::new(WALL_OFFSET_M, 0.0, -10e-3)),
+        duration_s: 0.6,
+        judge: Box::new(move |tip, _, f| {
+            let x = tip.translation.vector.x;
+            (
+                x <= half_gap + 0.01e-3 && f.x < -0.5 * k * (WALL_OFFSET_M - half_gap),
+                format!("tip x = {:.4} mm, wall force {:.2} N", x * 1e3, -f.x),
+            )
+        }),
+    }
+}
+
+/// Resting on the rim off the axis (past a wide chamfer), pushed down: it must jam, not enter.
+fn rim_jam_case(pair: &PartPair, probe: &PenetrationProbe) -> Case {
     let (rim_offset, past_chamfer) = rim_offset(probe, pair);
     let rim_where = if past_chamfer {
         " (past the mouth's chamfer, so that it rests on the flat top)"
     } else {
         ""
     };
-    let wall_offset = 1e-3;
-    vec![
-        Case {
-            name: "aligned_insertion",
-            expected: "reaches full depth from 2 mm partial insertion".into(),
-            start: upright(0.0, 0.0, -2e-3),
-            target: descend(-2e-3),
-            duration_s: insertion_time + 0.5,
-            judge: Box::new(full_depth),
-        },
-        Case {
-            name: "lateral_press",
-            expected: format!(
-                "pressed 1 mm sideways at 10 mm depth, stays in the hole: tip within c/2 = {:.3} mm of the axis",
-                half_gap * 1e3
-            ),
-            start: upright(0.0, 0.0, -10e-3),
-            target: Box::new(move |_| Vector3::new(wall_offset, 0.0, -10e-3)),
-            duration_s: 0.6,
-            judge: Box::new(move |tip, _, f| {
-                let x = tip.translation.vector.x;
-                (
-                    x <= half_gap + 0.01e-3 && f.x < -0.5 * k * (wall_offset - half_gap),
-                    format!("tip x = {:.4} mm, wall force {:.2} N", x * 1e3, -f.x),
-                )
-            }),
-        },
-        Case {
-            name: "tilted_1deg",
-            expected: "starts tilted 1 deg, aligns and reaches full depth".into(),
-            start: tilted(1.0),
-            target: descend(-2e-3),
-            duration_s: insertion_time + 0.5,
-            judge: Box::new(full_depth),
-        },
-        Case {
-            name: "tilted_3deg",
-            expected: "starts tilted 3 deg, aligns and reaches full depth".into(),
-            start: tilted(3.0),
-            target: descend(-2e-3),
-            duration_s: insertion_time + 0.5,
-            judge: Box::new(full_depth),
-        },
-        Case {
-            name: "rim_jam",
-            expected: format!(
-                "resting on the rim {:.1} mm off the axis{rim_where}, pushed down to 5 mm below it at 20 mm/s: jams, no entry (tip stays above -0.05 mm)",
-                rim_offset * 1e3
-            ),
-            start: lift_until_free(
-                probe,
-                pair,
-                &Isometry3::identity(),
-                upright(rim_offset, 0.0, 0.0),
-            ),
-            target: Box::new(move |t| Vector3::new(rim_offset, 0.0, (-speed * t).max(-5e-3))),
-            duration_s: 1.0,
-            judge: Box::new(|tip, min_z, _| {
-                (
-                    min_z >= -0.05e-3,
-                    format!(
-                        "lowest tip z = {:.4} mm, final {:.4} mm",
-                        min_z * 1e3,
-                        tip.translation.vector.z * 1e3
-                    ),
-                )
-            }),
-        },
-        Case {
-            name: "floor_press",
-            expected: format!(
-                "pressed 1 mm into the floor: force = stiffness x offset ({:.2} N)",
-                k * press
-            ),
-            start: upright(0.0, 0.0, -depth + 10e-6),
-            target: Box::new(move |_| Vector3::new(0.0, 0.0, -depth - press)),
-            duration_s: 0.6,
-            judge: Box::new(move |tip, _, f| {
-                let offset = tip.translation.vector.z - (-depth - press);
-                let expected = k * offset;
-                (
-                    (f.z - expected).abs() <= FORCE_AGREEMENT * expected,
-                    format!(
-                        "floor force {:.4} N vs stiffness x offset {:.4} N",
-                        f.z, expected
-                    ),
-                )
-            }),
-        },
-    ]
-    .into_iter()
-    .filter(|c| c.name != "floor_press" || pair.seat != Seat::Through)
-    .collect()
+    Case {
+        name: "rim_jam",
+        expected: format!(
+            "resting on the rim {:.1} mm off the axis{rim_where}, pushed down to 5 mm below it at 20 mm/s: jams, no entry (tip stays above -0.05 mm)",
+            rim_offset * 1e3
+        ),
+        start: lift_until_free(
+            probe,
+            pair,
+            &Isometry3::identity(),
+            upright(rim_offset, 0.0, 0.0),
+        ),
+        target: Box::new(move |t| Vector3::new(rim_offset, 0.0, (-DESCENT_M_PER_S * t).max(-5e-3))),
+        duration_s: 1.0,
+        judge: Box::new(|tip, min_z, _| {
+            (
+                min_z >= -0.05e-3,
+                format!(
+                    "lowest tip z = {:.4} mm, final {:.4} mm",
+                    min_z * 1e3,
+                    tip.translation.vector.z * 1e3
+                ),
+            )
+        }),
+    }
+}
+
+/// Pressed 1 mm into the floor: the floor carries stiffness x offset within
+/// [`FORCE_AGREEMENT`].
+fn floor_press_case(pair: &PartPair, k: f64) -> Case {
+    let depth = pair.cavity_depth_m;
+    Case {
+        name: "floor_press",
+        expected: format!(
+            "pressed 1 mm into the floor: force = stiffness x offset ({:.2} N)",
+            k * PRESS_M
+        ),
+        start: upright(0.0, 0.0, -depth + 10e-6),
+        target: Box::new(move |_| Vector3::new(0.0, 0.0, -depth - PRESS_M)),
+        duration_s: 0.6,
+        judge: Box::new(move |tip, _, f| {
+            let offset = tip.translation.vector.z - (-depth - PRESS_M);
+            let expected = k * offset;
+            (
+                (f.z - expected).abs() <= FORCE_AGREEMENT * expected,
+                format!(
+                    "floor force {:.4} N vs stiffness x offset {:.4} N",
+                    f.z, expected
+                ),
+            )
+        }),
+    }
 }
 
 fn run_case(
