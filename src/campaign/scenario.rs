@@ -455,18 +455,7 @@ impl Scenario {
         m.sampler()
             .ensure_valid()
             .map_err(|e| Error::Input(format!("manifold: {e}")))?;
-        let d = TrialConfig::default();
-        for (section, gains) in [("gains", &self.gains), ("direct.gains", &self.direct.gains)] {
-            for (phase, o, base) in [
-                ("observe", &gains.observe, &d.observe_gains),
-                ("align", &gains.align, &d.align_gains),
-                ("insert", &gains.insert, &d.insert_gains),
-            ] {
-                o.apply(base)
-                    .ensure_valid()
-                    .map_err(|e| Error::Input(format!("{section}.{phase}: {e}")))?;
-            }
-        }
+        self.ensure_gains_valid()?;
         self.insertion.ensure_valid("insertion")?;
         self.direct.insertion.ensure_valid("direct.insertion")?;
         self.cell_params().ensure_valid()?;
@@ -493,6 +482,24 @@ impl Scenario {
                     self.assemblies[k].display(),
                     pair.name
                 )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The gains of every phase, the scenario's and the direct baseline's, each over the
+    /// phase's defaults, within the Sunrise ranges.
+    fn ensure_gains_valid(&self) -> Result<()> {
+        let d = TrialConfig::default();
+        for (section, gains) in [("gains", &self.gains), ("direct.gains", &self.direct.gains)] {
+            for (phase, o, base) in [
+                ("observe", &gains.observe, &d.observe_gains),
+                ("align", &gains.align, &d.align_gains),
+                ("insert", &gains.insert, &d.insert_gains),
+            ] {
+                o.apply(base)
+                    .ensure_valid()
+                    .map_err(|e| Error::Input(format!("{section}.{phase}: {e}")))?;
             }
         }
         Ok(())
