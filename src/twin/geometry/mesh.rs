@@ -150,53 +150,7 @@ pub fn read_mesh_scaled(
     metres_per_unit: &nalgebra::Vector3<f64>,
     unit_words: &str,
 ) -> Result<TriangleSoup> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    let (raw, triangles): (Vec<[f32; 3]>, Vec<[u32; 3]>) = match ext.as_deref() {
-        Some("stl") => {
-            let mut file = std::fs::File::open(path)
-                .map_err(|e| Error::file(path, format!("cannot open: {e}")))?;
-            let mesh = stl_io::read_stl(&mut file)
-                .map_err(|e| Error::file(path, format!("not a valid STL file: {e}")))?;
-            (
-                mesh.vertices.iter().map(|v| v.0).collect(),
-                mesh.faces
-                    .iter()
-                    .map(|f| f.vertices.map(|i| i as u32))
-                    .collect(),
-            )
-        }
-        Some("obj") => {
-            let options = tobj::LoadOptions {
-                triangulate: true,
-                single_index: true,
-                ..Default::default()
-            };
-            let (models, _) = tobj::load_obj(path, &options)
-                .map_err(|e| Error::file(path, format!("not a valid OBJ file: {e}")))?;
-            let mut raw = Vec::new();
-            let mut tris = Vec::new();
-            for m in models {
-                let base = raw.len() as u32;
-                raw.extend(m.mesh.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
-                tris.extend(
-                    m.mesh
-                        .indices
-                        .chunks_exact(3)
-                        .map(|c| [base + c[0], base + c[1], base + c[2]]),
-                );
-            }
-            (raw, tris)
-        }
-        _ => {
-            return Err(Error::file(
-                path,
-                "unknown mesh format: expected a .stl or .obj file",
-            ));
-        }
-    };
+    let (raw, triangles) = read_raw_mesh(path)?;
     if triangles.is_empty() {
         return Err(Error::file(path, "the mesh has no triangles"));
     }
@@ -226,6 +180,59 @@ pub fn read_mesh_scaled(
         vertices,
         triangles,
     })
+}
+
+/// A mesh file's vertices, in the file's units, and its triangles (vertex indices).
+type RawMesh = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+/// A mesh file's vertices and triangles as the STL or OBJ reader gives them (OBJ faces
+/// triangulated, every object of the file in one list).
+fn read_raw_mesh(path: &Path) -> Result<RawMesh> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("stl") => {
+            let mut file = std::fs::File::open(path)
+                .map_err(|e| Error::file(path, format!("cannot open: {e}")))?;
+            let mesh = stl_io::read_stl(&mut file)
+                .map_err(|e| Error::file(path, format!("not a valid STL file: {e}")))?;
+            Ok((
+                mesh.vertices.iter().map(|v| v.0).collect(),
+                mesh.faces
+                    .iter()
+                    .map(|f| f.vertices.map(|i| i as u32))
+                    .collect(),
+            ))
+        }
+        Some("obj") => {
+            let options = tobj::LoadOptions {
+                triangulate: true,
+                single_index: true,
+                ..Default::default()
+            };
+            let (models, _) = tobj::load_obj(path, &options)
+                .map_err(|e| Error::file(path, format!("not a valid OBJ file: {e}")))?;
+            let mut raw = Vec::new();
+            let mut tris = Vec::new();
+            for m in models {
+                let base = raw.len() as u32;
+                raw.extend(m.mesh.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+                tris.extend(
+                    m.mesh
+                        .indices
+                        .chunks_exact(3)
+                        .map(|c| [base + c[0], base + c[1], base + c[2]]),
+                );
+            }
+            Ok((raw, tris))
+        }
+        _ => Err(Error::file(
+            path,
+            "unknown mesh format: expected a .stl or .obj file",
+        )),
+    }
 }
 
 fn trimesh(soup: &TriangleSoup, path: &Path) -> Result<TriMesh> {
