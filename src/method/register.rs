@@ -436,28 +436,13 @@ fn correspondences(
         .iter()
         .map(|o| metric.scaled(&Pose6::from_iso(o)))
         .collect();
-    // Neighbour caches are renewed together when many missed (or at the start). Between
-    // renewals, the distance between two observations can only have shrunk by the difference of
-    // their displacements since the epoch: at most |d_i - c| + max_j |d_j - c| for observation i,
-    // with c the mean displacement (small: the update moves them nearly as one).
+    // Neighbour caches are renewed together when many missed (or at the start).
     let renew = state.epoch.len() != n || state.misses * 8 > n;
-    let displacement: Vec<[f64; 6]> = if renew {
-        Vec::new()
+    let (spread, max_spread) = if renew {
+        (Vec::new(), 0.0)
     } else {
-        scaled
-            .iter()
-            .zip(&state.epoch)
-            .map(|(a, b)| std::array::from_fn(|k| a[k] - b[k]))
-            .collect()
+        displacement_spread(&scaled, &state.epoch)
     };
-    let mean: [f64; 6] = std::array::from_fn(|k| {
-        displacement.iter().map(|d| d[k]).sum::<f64>() / displacement.len().max(1) as f64
-    });
-    let spread: Vec<f64> = displacement
-        .iter()
-        .map(|d| squared_distance(d, &mean).sqrt())
-        .collect();
-    let max_spread = spread.iter().copied().fold(0.0, f64::max);
     let obs_index: OnceLock<ScaledIndex> = OnceLock::new();
     let index = || obs_index.get_or_init(|| ScaledIndex::new(&scaled));
     let k_nz = NonZero::new(k).expect("k >= 7");
@@ -511,6 +496,28 @@ fn correspondences(
         state.neighbours = fresh;
     }
     cs
+}
+
+/// How far each observation has moved since the neighbour caches' epoch, apart from the mean
+/// move, and the largest of those (scaled coordinates). Between renewals the distance between
+/// two observations can only have shrunk by the difference of their displacements: at most
+/// |d_i - c| + max_j |d_j - c| for observation i, with c the mean displacement (small: the
+/// update moves them nearly as one).
+fn displacement_spread(scaled: &[[f64; 6]], epoch: &[[f64; 6]]) -> (Vec<f64>, f64) {
+    let displacement: Vec<[f64; 6]> = scaled
+        .iter()
+        .zip(epoch)
+        .map(|(a, b)| std::array::from_fn(|k| a[k] - b[k]))
+        .collect();
+    let mean: [f64; 6] = std::array::from_fn(|k| {
+        displacement.iter().map(|d| d[k]).sum::<f64>() / displacement.len().max(1) as f64
+    });
+    let spread: Vec<f64> = displacement
+        .iter()
+        .map(|d| squared_distance(d, &mean).sqrt())
+        .collect();
+    let max_spread = spread.iter().copied().fold(0.0, f64::max);
+    (spread, max_spread)
 }
 
 /// Line 10: the symmetric point-to-plane misalignment, scaled coordinates.
