@@ -276,18 +276,14 @@ fn cases(pair: &PartPair, probe: &PenetrationProbe, gains: &FreePegGains) -> Vec
         ),
         lateral_press_case(pair, k),
     ];
-    for deg in [1.0, 3.0] {
+    for (name, deg) in [("tilted_1deg", 1.0f64), ("tilted_3deg", 3.0)] {
         let tilt = Isometry3::from_parts(
             Translation3::new(0.0, 0.0, -2e-3),
-            UnitQuaternion::from_euler_angles(f64::to_radians(deg), 0.0, 0.0),
+            UnitQuaternion::from_euler_angles(deg.to_radians(), 0.0, 0.0),
         );
         cases.push(insertion_case(
             pair,
-            if deg == 1.0 {
-                "tilted_1deg"
-            } else {
-                "tilted_3deg"
-            },
+            name,
             format!("starts tilted {deg} deg, aligns and reaches full depth"),
             lift_until_free(probe, pair, &Isometry3::identity(), tilt),
         ));
