@@ -239,6 +239,60 @@ fn campaign_is_identical_across_threads_shards_and_a_kill() {
 }
 
 #[test]
+fn rerun_gives_a_campaigns_record_bit_for_bit_and_traces_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (t, cache) = (tmp.path(), tmp.path().join("cache"));
+    let scenario = write(t, "s.toml", SCENARIO);
+    let out = t.join("run");
+    let o = campaign(&scenario, &out, &cache, &["--replays", "none"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let lines: Vec<String> = trials(&out).lines().map(str::to_owned).collect();
+    let cache = cache.to_str().unwrap();
+    for (from, cell, trial) in [(out.to_str().unwrap(), 0, 1), (&scenario, 1, 2)] {
+        let trace = t.join(format!("trace{cell}.csv"));
+        let (cell_s, trial_s) = (cell.to_string(), trial.to_string());
+        let o = pegtwin(&[
+            "rerun",
+            from,
+            "--cell",
+            &cell_s,
+            "--trial",
+            &trial_s,
+            "--cache-dir",
+            cache,
+            "--json",
+            "--trace",
+            trace.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let line = String::from_utf8(o.stdout).unwrap();
+        assert_eq!(
+            line.trim_end(),
+            lines[cell * 3 + trial],
+            "cell {cell} trial {trial}"
+        );
+        let csv = std::fs::read_to_string(&trace).unwrap();
+        assert!(csv.starts_with("time_s,phase,") && csv.lines().count() > 1000);
+    }
+    for (flag, value, says) in [
+        ("--cell", "2", "--cell 2: the scenario has 2 cells"),
+        (
+            "--trial",
+            "3",
+            "--trial 3: the scenario runs 3 trials per cell",
+        ),
+    ] {
+        let mut args = vec!["rerun", &scenario, "--cell", "0", "--trial", "0"];
+        let at = args.iter().position(|a| *a == flag).unwrap();
+        args[at + 1] = value;
+        args.extend(["--cache-dir", cache]);
+        let o = pegtwin(&args);
+        assert_eq!(o.status.code(), Some(2));
+        assert!(stderr(&o).contains(says), "{}", stderr(&o));
+    }
+}
+
+#[test]
 fn bad_scenarios_and_folders_are_refused_with_exit_2() {
     let tmp = tempfile::tempdir().unwrap();
     let t = tmp.path();

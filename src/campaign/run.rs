@@ -243,6 +243,38 @@ pub fn prepare(
     })
 }
 
+/// One trial of a scenario, ready to run on its own as its campaign runs it: cell `cell` and trial
+/// `trial`, numbered from 0 as in `trials.jsonl`. Only that trial's pair is prepared (its
+/// manifold loaded from the cache, or built into it). Its record is the campaign's, bit for bit:
+/// a trial is a pure function of its seed and the scenario (module docs).
+pub fn single_trial(
+    scenario: &Scenario,
+    cell: usize,
+    trial: usize,
+    options: &RunOptions,
+) -> Result<(TrialSpec, Prepared)> {
+    let cells = scenario.cells();
+    let Some(condition) = cells.get(cell) else {
+        return Err(Error::Input(format!(
+            "--cell {cell}: the scenario has {} cells, numbered from 0 as in trials.jsonl",
+            cells.len()
+        )));
+    };
+    if trial >= scenario.trials {
+        return Err(Error::Input(format!(
+            "--trial {trial}: the scenario runs {} trials per cell, numbered from 0 as in trials.jsonl",
+            scenario.trials
+        )));
+    }
+    let spec = TrialSpec {
+        cell,
+        trial,
+        seed: trial_seed(scenario.seed, condition, trial),
+    };
+    let prepared = prepare(scenario, std::slice::from_ref(&spec), options)?;
+    Ok((spec, prepared))
+}
+
 /// Runs one trial of a campaign (the real one is [`run_one`]; a test may inject another).
 pub(crate) type RunOne<'a> =
     dyn Fn(&Scenario, &Prepared, &TrialSpec) -> Result<TrialResult> + Sync + 'a;

@@ -26,7 +26,7 @@ pub use bench::BenchArgs;
 pub use campaign::{CampaignArgs, CheckArgs, MergeArgs, TuneArgs};
 pub use registration::{ManifoldAction, RegisterArgs};
 pub use robot::RobotAction;
-pub use trial::TrialArgs;
+pub use trial::{RerunArgs, TrialArgs};
 
 #[derive(Parser)]
 #[command(
@@ -70,6 +70,9 @@ pub enum Command {
     /// One online trial: a randomly offset hole, contact observation, registration, insertion
     /// (or the direct-insertion baseline).
     Trial(TrialArgs),
+    /// One trial of a campaign again, on its own: its record bit for bit, with a trace or a 3-D
+    /// replay (from a scenario file or a campaign's results folder).
+    Rerun(RerunArgs),
     /// Every trial of a scenario in parallel: trials.jsonl, summary.json/csv, report.html.
     Campaign(CampaignArgs),
     /// Join the result folders of a campaign's shards into one.
@@ -236,6 +239,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Register(args) => registration::register_command(args),
         Command::Robot { action } => robot::robot_command(action),
         Command::Trial(args) => trial::trial_command(args),
+        Command::Rerun(args) => trial::rerun_command(args),
         Command::Campaign(args) => campaign::campaign_command(args),
         Command::Merge(args) => campaign::merge_command(args),
         Command::Check(args) => campaign::check_command(args),

@@ -1,15 +1,23 @@
-//! `pegtwin trial`: one online trial, the manifold method or the direct baseline.
+//! `pegtwin trial`: one online trial, the manifold method or the direct baseline; `pegtwin rerun`:
+//! one trial of a campaign again, on its own, to trace or replay it.
 
 use super::PairChoice;
 use super::choices::{MethodArg, StartArg};
 use super::progress::Bars;
 use clap::Args;
+use pegtwin::campaign::records::TrialRecord;
+use pegtwin::campaign::run::{self as campaign, RunOptions};
+use pegtwin::campaign::scenario::Scenario;
 use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
+use pegtwin::method::manifold::Manifold;
+use pegtwin::method::manifold::cache;
 use pegtwin::method::request::{TrialRequest, default_offsets_mm_deg};
 use pegtwin::method::session::{Recorder, trace_csv};
 use pegtwin::method::trial::TrialResult;
 use pegtwin::replay::Replay;
+use pegtwin::twin::geometry::PartPair;
+use pegtwin::twin::robot::RobotModel;
 use std::path::PathBuf;
 
 /// The library's default offset half-ranges, mm and deg (the paper's U(-5, 5)).
@@ -71,20 +79,13 @@ impl TrialArgs {
 pub fn trial_command(args: TrialArgs) -> Result<i32> {
     let request = args.request();
     let checked = request.check()?;
-    for path in args.trace.iter().chain(&args.replay) {
-        pegtwin::files::ensure_writable(path)?;
-    }
+    ensure_writable(&args.trace, &args.replay)?;
     let trial = request.prepare(checked, &Bars::new(true))?;
-    let mut recorders = (Vec::new(), Replay::new(&trial.pair, &trial.robot));
-    let recording = args.trace.is_some() || args.replay.is_some();
-    let result = trial.run(recording.then_some(&mut recorders as &mut dyn Recorder))?;
-    let (rows, replay) = recorders;
-    if let Some(path) = &args.trace {
-        pegtwin::files::write_atomically(path, &trace_csv(&rows))?;
-    }
-    if let Some(path) = &args.replay {
-        replay.write_html(path, &result, trial.manifold.as_ref())?;
-    }
+    let result = run_recorded(
+        (&trial.pair, &trial.robot, trial.manifold.as_ref()),
+        (&args.trace, &args.replay),
+        |recorder| trial.run(recorder),
+    )?;
     if args.json {
         println!(
             "{}",
@@ -94,6 +95,96 @@ pub fn trial_command(args: TrialArgs) -> Result<i32> {
         print_result(&result);
     }
     Ok(0)
+}
+
+/// One trial of a campaign again, on its own (a scenario file or a campaign's results folder).
+#[derive(Args)]
+pub struct RerunArgs {
+    /// A scenario file (TOML), or the results folder of a campaign (its campaign.json).
+    pub campaign: PathBuf,
+    /// The trial's cell, numbered from 0 as in trials.jsonl (`cell`).
+    #[arg(long)]
+    pub cell: usize,
+    /// The trial within its cell, numbered from 0 as in trials.jsonl (`trial`).
+    #[arg(long)]
+    pub trial: usize,
+    /// Folder of cached manifolds (default: $XDG_CACHE_HOME/pegtwin or ~/.cache/pegtwin).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Print the record as one JSON line, the same as the trial's line of trials.jsonl.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the time series (time, phase, TCP pose, estimated and true wrench, contact) as CSV.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
+    /// Write a 3-D replay of the trial: one self-contained HTML page (open it in a browser).
+    #[arg(long)]
+    pub replay: Option<PathBuf>,
+}
+
+pub fn rerun_command(args: RerunArgs) -> Result<i32> {
+    let scenario = if args.campaign.is_dir() {
+        campaign::read_campaign(&args.campaign)?.scenario
+    } else {
+        Scenario::load(&args.campaign)?
+    };
+    ensure_writable(&args.trace, &args.replay)?;
+    let bars = Bars::new(true);
+    let options = RunOptions {
+        cache_dir: match &args.cache_dir {
+            Some(d) => d.clone(),
+            None => cache::default_dir()?,
+        },
+        progress: &bars,
+    };
+    let (spec, prepared) = campaign::single_trial(&scenario, args.cell, args.trial, &options)?;
+    let result = run_recorded(
+        prepared.inputs(&scenario.cells()[spec.cell]),
+        (&args.trace, &args.replay),
+        |recorder| campaign::run_one_recorded(&scenario, &prepared, &spec, recorder),
+    )?;
+    if args.json {
+        let record = TrialRecord {
+            cell: spec.cell,
+            trial: spec.trial,
+            result,
+        };
+        println!(
+            "{}",
+            serde_json::to_string(&record).expect("record serialises")
+        );
+    } else {
+        print_result(&result);
+    }
+    Ok(0)
+}
+
+/// Refuses, before anything runs, a trace or replay path that cannot be written.
+fn ensure_writable(trace: &Option<PathBuf>, replay: &Option<PathBuf>) -> Result<()> {
+    for path in trace.iter().chain(replay) {
+        pegtwin::files::ensure_writable(path)?;
+    }
+    Ok(())
+}
+
+/// Runs a trial through `run`, recording it when a trace or a replay is asked for, and writes
+/// them once it has finished.
+fn run_recorded(
+    (pair, robot, manifold): (&PartPair, &RobotModel, Option<&Manifold>),
+    (trace, replay): (&Option<PathBuf>, &Option<PathBuf>),
+    run: impl FnOnce(Option<&mut dyn Recorder>) -> Result<TrialResult>,
+) -> Result<TrialResult> {
+    let mut recorders = (Vec::new(), Replay::new(pair, robot));
+    let recording = trace.is_some() || replay.is_some();
+    let result = run(recording.then_some(&mut recorders as &mut dyn Recorder))?;
+    let (rows, page) = recorders;
+    if let Some(path) = trace {
+        pegtwin::files::write_atomically(path, &trace_csv(&rows))?;
+    }
+    if let Some(path) = replay {
+        page.write_html(path, &result, manifold)?;
+    }
+    Ok(result)
 }
 
 fn print_result(r: &TrialResult) {
