@@ -4,6 +4,7 @@
 use pegtwin::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use pegtwin::twin::control::{ImpedanceGains, JointPositionGains, Mode};
 use pegtwin::twin::diagnostics::{PushTest, measure_stiffness};
+use pegtwin::twin::energy::EnergySource;
 use pegtwin::twin::geometry::{PartPair, build_builtin, builtin_by_name};
 use pegtwin::twin::physics::penetration::PenetrationProbe;
 use pegtwin::twin::robot::Iso;
@@ -123,6 +124,48 @@ fn misaligned_cross_stalls_on_the_mouth() {
     assert!(worst <= 5e-6, "penetration {worst} m");
     let f = cell.truth().contact_wrench();
     assert!(f.z > 10.0, "the rim carries the press: {f}");
+}
+
+#[test]
+fn contacts_take_energy_out_of_the_arm_and_the_account_closes_while_pressing_the_rim() {
+    let pair = cross(0.1e-3);
+    let params = CellParams::default();
+    let hole = nominal_hole_pose(&pair, &params);
+    let start = tcp_in_hole(&hole, -0.001) * Iso::translation(0.001, 0.0, 0.0);
+    let (cell, _) = press_down(&pair, start, 0.01, &params);
+    let f = cell.energy_flows();
+    assert!(cell.truth().contact_wrench().z > 10.0, "pressing the rim");
+    assert!(f.contacts_j <= 1e-3, "contacts put energy in: {f:?}");
+    assert!(
+        f.integration_j.abs() <= 1e-3,
+        "the account does not close: {f:?}"
+    );
+}
+
+#[test]
+fn a_commanded_twist_is_paid_for_by_the_drives_and_the_account_closes() {
+    let pair = cross(0.5e-3);
+    let params = CellParams::default();
+    let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.05);
+    let gains = ImpedanceGains::uniform(2000.0, 300.0, 0.7);
+    let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
+    cell.run(0.2);
+    let twisted = start
+        * Iso::from_parts(
+            nalgebra::Translation3::identity(),
+            nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.1),
+        );
+    cell.command_pose(twisted);
+    cell.run(0.05);
+    let f = cell.energy_flows();
+    assert_eq!(f.source, EnergySource::Drives);
+    assert!(f.drives_j > 0.05 && f.contacts_j == 0.0, "{f:?}");
+    // rapier treats the damping and the gyroscopic terms implicitly: its integrator loses a
+    // little of what the drives put in (15 % of it in this fast swing), and gains none.
+    assert!(
+        f.integration_j <= 0.0 && f.integration_j.abs() <= 0.2 * f.drives_j,
+        "the account does not close: {f:?}"
+    );
 }
 
 #[test]

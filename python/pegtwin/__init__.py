@@ -153,6 +153,8 @@ def _flat_record(record: Dict[str, Any]) -> Dict[str, Any]:
     fault = result.pop("fault")
     row["fault_reason"] = None if fault is None else fault["reason"]
     row["fault_time_s"] = np.nan if fault is None else fault["time_s"]
+    energy = None if fault is None else fault.get("energy")
+    row["fault_source"] = None if energy is None else energy["source"]
     for name, v in result.pop("times").items():
         row[f"time_{name}"] = v
     row.update(result)
@@ -169,7 +171,9 @@ def load_trials(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
     ``mean_fz_n``, ``contact_observations``, ``observations_used``, the hole offset
     ``offset_x_mm`` ... ``offset_yaw_deg``, the estimate's errors ``error_x_mm`` ...
     ``error_yaw_deg`` (NaN for ``direct``), the estimate ``estimate_x_m`` ... ``estimate_yaw_rad``,
-    ``fault_reason`` and ``fault_time_s``, ``stopped``, the phase times ``time_search_s`` ...
+    ``fault_reason``, ``fault_time_s`` and ``fault_source`` (who put in the energy that ended a
+    ``sim_fault``: ``drives``, the commanded motion; ``contacts`` or ``integration``, the
+    physics), ``stopped``, the phase times ``time_search_s`` ...
     ``time_insert_s``, ``insert_fz_n`` (the insertion's |Fz| profile, a list per row), and
     ``insert_end`` (what ended the insertion: ``seat``, ``jam``, ``travel`` or ``limit``).
     """

@@ -124,8 +124,8 @@ def test_a_campaign_writes_its_folder_and_loads_as_dataframes(
     for column in [
         "cell", "trial", "seed", "geometry", "clearance_mm", "method", "t_obs_s", "outcome",
         "success", "final_depth_mm", "peak_fz_n", "mean_fz_n", "offset_x_mm", "offset_yaw_deg",
-        "error_x_mm", "error_yaw_deg", "estimate_x_m", "fault_reason", "time_observe_s",
-        "insert_fz_n", "insert_end",
+        "error_x_mm", "error_yaw_deg", "estimate_x_m", "fault_reason", "fault_source",
+        "time_observe_s", "insert_fz_n", "insert_end",
     ]:
         assert column in trials.columns, column
     assert set(trials["method"]) == {"manifold", "direct"}
@@ -160,6 +160,19 @@ def test_campaign_errors_are_value_errors(scenario: Path, tmp_path: Path, cli: P
     assert not (tmp_path / "y").exists() and not (tmp_path / "z").exists()
     with pytest.raises(ValueError, match="trials.jsonl"):
         pegtwin.load_trials(tmp_path)
+
+
+def test_a_faulted_record_names_who_put_the_energy_in(tmp_path: Path) -> None:
+    energy = {"window_s": 0.1, "mechanical_gain_j": 2.3, "drives_j": -0.5, "contacts_j": 3.4,
+              "joint_damping_j": -0.3, "integration_j": -0.3, "source": "contacts"}
+    record = {"cell": 0, "trial": 0, "seed": 1, "geometry": "gear", "clearance_mm": 0.1,
+              "method": "direct", "outcome": "sim_fault", "offset": [0.0] * 6, "errors": None,
+              "estimate": None, "final_depth_mm": 4.1, "times": {"observe_s": 0.674},
+              "fault": {"time_s": 0.674, "reason": "runaway velocity", "energy": energy}}
+    older = dict(record, trial=1, fault={"time_s": 1.0, "reason": "runaway velocity"})
+    (tmp_path / "trials.jsonl").write_text(json.dumps(record) + "\n" + json.dumps(older) + "\n")
+    trials = pegtwin.load_trials(tmp_path)
+    assert list(trials["fault_source"]) == ["contacts", None]
 
 
 def test_ctrl_c_stops_a_campaign_cleanly_and_it_resumes(scenario: Path, tmp_path: Path) -> None:

@@ -9,12 +9,13 @@
 
 use crate::error::{Error, Result};
 use crate::twin::control::{Controller, ControllerParams, ImpedanceGains, Mode};
+use crate::twin::energy::{EnergyFlows, EnergyLedger, StepEnergy};
 use crate::twin::geometry::PartPair;
 use crate::twin::physics::arm::Arm;
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::physics::{
     PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
-    set_prediction_for_speed,
+    set_prediction_for_speed, v64,
 };
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::robot::{Inertial, Iso, RobotModel, Tool};
@@ -160,6 +161,8 @@ pub struct Cell {
     penetration_fault_m: f64,
     /// Per joint: the last time its commanded torque was clamped to its limit, s.
     saturated_at_s: Vec<f64>,
+    /// The arm's energy account of the last 100 ms (who pays for a fault).
+    energy: EnergyLedger,
 }
 
 /// What the robot reports, as of its last control cycle: the only inputs of the method.
@@ -227,10 +230,22 @@ pub struct SimFault {
     pub time_s: f64,
     pub reason: String,
     /// The joints whose commanded torque sat at its limit within the last 100 ms before the
-    /// fault. Not empty: the commanded motion asked more of the arm than its drives give (the
-    /// real robot would stop on its torque monitoring too). Empty: the fault is the physics'.
+    /// fault: the commanded motion asked more of the arm than its drives give (the real robot
+    /// would stop on its torque monitoring too).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub saturated_joints: Vec<String>,
+    /// The arm's energy account of the last 100 ms before the fault: who put the energy in
+    /// (the drives: the commanded motion; the contacts or the integrator: the physics).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy: Option<EnergyFlows>,
+}
+
+impl SimFault {
+    /// Whether the physics (the contact solve or the integrator), not the drives, put in the
+    /// energy that ended the run; `None` when the record has no energy account (older records).
+    pub fn is_physics(&self) -> Option<bool> {
+        self.energy.as_ref().map(|e| e.source.is_physics())
+    }
 }
 
 /// Steps between exact penetration checks.
@@ -311,7 +326,12 @@ impl Cell {
             probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
             penetration_fault_m: pair.clearance_m.max(0.1e-3),
             saturated_at_s: vec![f64::NEG_INFINITY; n],
+            energy: EnergyLedger::new(dt, 0.0),
         };
+        let start_energy = cell
+            .arm
+            .mechanical_energy(&cell.world, &cell.model.armature, &cell.qd);
+        cell.energy = EnergyLedger::new(dt, start_energy);
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.
         let k = cell.model.kinematics(&q0);
         cell.tau = cell
@@ -343,6 +363,7 @@ impl Cell {
         }
         let speed = max_point_speed(&self.world, self.arm.last_body(), self.peg_reach_m);
         set_prediction_for_speed(&mut self.world, speed);
+        let q_before = self.arm.q(&self.world);
         self.world.step();
         self.arm.clear_torques(&mut self.world);
         // Torques do not change velocities until the step, so the last step's velocities are
@@ -353,8 +374,50 @@ impl Cell {
             self.tau_link[i] =
                 self.tau[i] - self.model.armature[i] * qdd - self.model.joints[i].damping * v;
         }
-        self.qd = qd;
         self.steps += 1;
+        let booked = self.step_energy(&q_before, &qd, dt);
+        self.energy.book(self.time_s(), booked);
+        self.qd = qd;
+    }
+
+    /// The arm's energy after the step and the work done on it during the step, from the joint
+    /// positions before it and the joint speeds `qd` after it (see [`crate::twin::energy`]). A
+    /// joint torque is constant over the step, so its work is exact: torque times the joint's
+    /// travel; the damping's is booked as rapier applies it, implicitly (at the speed after the
+    /// step), and the contacts' at the velocities after the step.
+    fn step_energy(&self, q_before: &[f64], qd: &[f64], dt: f64) -> StepEnergy {
+        let travel: Vec<f64> = self
+            .arm
+            .q(&self.world)
+            .iter()
+            .zip(q_before)
+            .map(|(q, q0)| q - q0)
+            .collect();
+        let torque_work: f64 = self.tau.iter().zip(&travel).map(|(t, d)| t * d).sum();
+        let damping_work: f64 = (self.model.joints.iter())
+            .zip(travel.iter().zip(qd))
+            .map(|(j, (d, v))| -j.damping * v * d)
+            .sum();
+        StepEnergy {
+            mechanical_j: self
+                .arm
+                .mechanical_energy(&self.world, &self.model.armature, qd),
+            drives_j: torque_work + self.disturbance_power() * dt,
+            contacts_j: self.arm.contact_power(&self.world) * dt,
+            damping_j: damping_work,
+        }
+    }
+
+    /// Power of the diagnostic push on the TCP, W (zero without one).
+    fn disturbance_power(&self) -> f64 {
+        let Some(w) = &self.disturbance else {
+            return 0.0;
+        };
+        let body = &self.world.bodies[self.arm.last_body()];
+        let tcp = self.true_tcp_pose();
+        let (v, omega) = (v64(body.linvel()), v64(body.angvel()));
+        let v_tcp = v + omega.cross(&(tcp.translation.vector - v64(body.center_of_mass())));
+        w.fixed_rows::<3>(0).dot(&v_tcp) + w.fixed_rows::<3>(3).dot(&omega)
     }
 
     /// Runs `seconds` of simulated time.
@@ -430,6 +493,12 @@ impl Cell {
         }
     }
 
+    /// The arm's energy account of the last 100 ms: who put energy in (see
+    /// [`crate::twin::energy`]).
+    pub fn energy_flows(&self) -> EnergyFlows {
+        self.energy.flows()
+    }
+
     /// The ground truth (see [`Truth`]).
     pub fn truth(&self) -> Truth<'_> {
         Truth { cell: self }
@@ -468,19 +537,20 @@ impl Cell {
     pub fn fault(&self) -> Option<SimFault> {
         let fault = |reason: String| {
             let saturated_joints = self.saturated_joints();
-            let reason = if saturated_joints.is_empty() {
-                reason
-            } else {
-                format!(
-                    "{reason} (commanded torque at its limit within {} ms before: {})",
+            let energy = self.energy.flows();
+            let mut reason = format!("{reason}; {}", energy.describe());
+            if !saturated_joints.is_empty() {
+                reason += &format!(
+                    "; commanded torque at its limit within {} ms before: {}",
                     SATURATION_WINDOW_S * 1e3,
                     saturated_joints.join(", ")
-                )
-            };
+                );
+            }
             Some(SimFault {
                 time_s: self.time_s(),
                 reason,
                 saturated_joints,
+                energy: Some(energy),
             })
         };
         let q = self.arm.q(&self.world);
@@ -540,7 +610,7 @@ pub fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Resu
         .mass_properties();
     let tool_inertial = Inertial {
         mass_kg: peg_props.mass() as f64,
-        com: Point3::from(crate::twin::physics::v64(peg_props.local_com)),
+        com: Point3::from(v64(peg_props.local_com)),
         inertia: nalgebra::Matrix3::from(peg_props.reconstruct_inertia_matrix()).cast::<f64>(),
     }
     .transformed(&tcp_on_flange);

@@ -6,6 +6,7 @@ pub mod assembly;
 pub mod cell;
 pub mod control;
 pub mod diagnostics;
+pub mod energy;
 pub mod geometry;
 pub mod physics;
 pub mod robot;

@@ -270,21 +270,30 @@ fn check_faults(faults: &[(usize, SimFault)], episodes: usize, pair: &PartPair) 
     )))
 }
 
-/// What a refused build's faults point to: with no drive at its torque limit, the contact solve
-/// did not converge (docs/physics.md: the gear at 0.1 mm faults at 4 Gauss-Seidel passes and
-/// builds at 8); with one, the commanded motion drove the arm.
+/// What a refused build's faults point to, by who put in the energy that ended each episode
+/// (`twin::energy`): the contacts or the integrator, a contact solve that did not converge
+/// (docs/physics.md: the gear at 0.1 mm faults at 4 Gauss-Seidel passes and builds at 8); the
+/// drives, the commanded motion. A fault without an energy account counts as the physics' when
+/// no drive was at its torque limit.
 fn fault_hint(faults: &[(usize, SimFault)]) -> String {
-    let saturated = faults
+    let physics = faults
         .iter()
-        .filter(|(_, f)| !f.saturated_joints.is_empty())
+        .filter(|(_, f)| f.is_physics().unwrap_or(f.saturated_joints.is_empty()))
         .count();
-    if saturated == 0 {
-        " (no drive was at its torque limit: the contact solve did not converge; more \
-         Gauss-Seidel passes, a scenario's `[physics] pgs_iterations`, may converge it)"
-            .into()
-    } else {
-        format!(" ({saturated} with a drive at its torque limit: the commanded motion's)")
+    let driven = faults.len() - physics;
+    let drives = format!("{driven} powered by the drives: the commanded motion's");
+    if physics == 0 {
+        return format!(" ({drives})");
     }
+    let mut hint = format!(
+        " ({physics} powered by the contacts or the integrator: the contact solve did not \
+         converge; more Gauss-Seidel passes, a scenario's `[physics] pgs_iterations`, may \
+         converge it"
+    );
+    if driven > 0 {
+        hint += &format!("; {drives}");
+    }
+    hint + ")"
 }
 
 /// The result of a build.
@@ -374,6 +383,7 @@ pub fn build(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::twin::energy::{EnergyFlows, EnergySource};
 
     #[test]
     fn voxel_downsampling_removes_density_bias() {
@@ -427,6 +437,7 @@ mod tests {
                     time_s: 1.0,
                     reason: "runaway velocity".into(),
                     saturated_joints: Vec::new(),
+                    energy: Some(flows(EnergySource::Contacts)),
                 },
             )
         };
@@ -439,11 +450,31 @@ mod tests {
             "{e}"
         );
         let mut driven = three.clone();
-        driven[1].1.saturated_joints = vec!["iiwa_joint_7".into()];
+        for (_, f) in &mut driven {
+            f.energy = Some(flows(EnergySource::Drives));
+        }
         let e = check_faults(&driven, 48, &pair).unwrap_err().to_string();
         assert!(
-            e.contains("1 with a drive at its torque limit") && !e.contains("pgs_iterations"),
+            e.contains("3 powered by the drives") && !e.contains("pgs_iterations"),
             "{e}"
         );
+        driven[1].1.energy = None;
+        let e = check_faults(&driven, 48, &pair).unwrap_err().to_string();
+        assert!(
+            e.contains("1 powered by the contacts") && e.contains("2 powered by the drives"),
+            "{e}"
+        );
+    }
+
+    fn flows(source: EnergySource) -> EnergyFlows {
+        EnergyFlows {
+            window_s: 0.1,
+            mechanical_gain_j: 1.0,
+            drives_j: 0.0,
+            contacts_j: 0.0,
+            joint_damping_j: 0.0,
+            integration_j: 0.0,
+            source,
+        }
     }
 }

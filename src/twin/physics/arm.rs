@@ -187,6 +187,45 @@ impl Arm {
         *self.bodies.last().expect("at least one link")
     }
 
+    /// The arm's mechanical energy, J: the links' kinetic energy, the rotors' (`armature`, kg m^2,
+    /// at joint speeds `qd`) and the links' potential energy in the world's gravity.
+    pub fn mechanical_energy(&self, world: &PhysicsWorld, armature: &[f64], qd: &[f64]) -> f64 {
+        let g = super::v64(world.gravity);
+        let links: f64 = self.bodies[1..]
+            .iter()
+            .map(|&b| {
+                let rb = &world.bodies[b];
+                rb.kinetic_energy() as f64
+                    - rb.mass() as f64 * g.dot(&super::v64(rb.center_of_mass()))
+            })
+            .sum();
+        let rotors: f64 = armature.iter().zip(qd).map(|(a, v)| 0.5 * a * v * v).sum();
+        links + rotors
+    }
+
+    /// Power of the last step's contact impulses on the arm's links at their velocities after
+    /// the step, W: the solver's own measure of what it did. A converged contact without
+    /// restitution leaves no normal velocity into the surface and friction only opposes sliding,
+    /// so this is zero or negative; positive, the contact solve put energy into the arm (an
+    /// unconverged solve, or the position correction pushing out faster than it should).
+    pub fn contact_power(&self, world: &PhysicsWorld) -> f64 {
+        self.bodies[1..]
+            .iter()
+            .map(|&b| {
+                let rb = &world.bodies[b];
+                let com = super::v64(rb.center_of_mass());
+                let (v, w) = (super::v64(rb.linvel()), super::v64(rb.angvel()));
+                rb.colliders()
+                    .iter()
+                    .map(|&c| {
+                        let wrench = super::contact_wrench(world, c, com);
+                        wrench.force.dot(&v) + wrench.torque.dot(&w)
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
+    }
+
     /// `world_T_link` of the last link, from the physics.
     pub fn last_link_pose(&self, world: &PhysicsWorld) -> Iso {
         pose64(world.bodies[self.last_body()].position())
