@@ -75,6 +75,45 @@ fn a_garbage_mesh_exits_2_naming_the_file() {
 }
 
 #[test]
+fn bench_times_a_scenarios_manifolds_and_campaign_cached_and_cold() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = tmp.path().join("s.toml");
+    std::fs::write(
+        &scenario,
+        "name = \"tiny\"\nseed = 7\ntrials = 2\ngeometries = [\"cross\"]\nclearances_mm = [0.5]\n\
+         t_obs_s = [3.0]\nmethods = [\"manifold\", \"direct\"]\ndirect_t_obs_s = 3.0\n\
+         [manifold]\npoints = 3000\nepisodes = 3\nepisode_s = 5.0\n",
+    )
+    .unwrap();
+    let o = pegtwin(&[
+        "bench",
+        "--arm-steps",
+        "10",
+        "--env-steps",
+        "10",
+        "--json",
+        "--campaign",
+        scenario.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rows = rows.as_array().unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(
+        names[6..],
+        ["manifold_cross_0.5mm", "campaign_cached", "campaign_cold"]
+    );
+    for r in &rows[6..] {
+        assert!(r["value"].as_f64().unwrap() > 0.0, "{r}");
+        assert!(r["real_time_factor"].as_f64().unwrap() > 0.0, "{r}");
+    }
+    assert!(rows[7]["what"].as_str().unwrap().contains("(4 trials)"));
+    let o = pegtwin(&["bench", "--campaign", "missing.toml"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("missing.toml"), "{}", stderr(&o));
+}
+
+#[test]
 fn bench_measures_every_piece_and_refuses_zero_steps() {
     let o = pegtwin(&["bench", "--arm-steps", "20", "--env-steps", "40", "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));

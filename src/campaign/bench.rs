@@ -11,10 +11,21 @@
 //! - one registration (paper IV-D) of 1 000 observations against a 100 000-pose analytic cross
 //!   manifold, 16 restarts, on the current thread pool (as in a campaign).
 //!
+//! With a scenario (`pegtwin bench --campaign FILE`), the campaign's own figures too, each in
+//! a scratch folder that is removed afterwards: every reference manifold it registers against,
+//! built alone on all cores into an empty cache; the whole campaign with those manifolds cached;
+//! and the whole campaign again from an empty cache (its manifolds built side by side, then its
+//! trials), each with its CPU time, how busy it kept the cores, and simulated over wall time.
+//!
 //! Wall-clock figures: run it on an idle machine. Instruction counts, which do not depend on the
 //! load, are in `docs/performance.md`.
 
-use crate::error::Result;
+use crate::campaign::records::{RecordSource, TrialSpec};
+use crate::campaign::replays::Replays;
+use crate::campaign::run::{CampaignOptions, RunOptions, Shard, all_trials, campaign, prepare};
+use crate::campaign::scenario::Scenario;
+use crate::campaign::usage::Stopwatch;
+use crate::error::{Error, Result};
 use crate::method::config::{Method, TrialConfig};
 use crate::method::env::{EnvConfig, PegEnv};
 use crate::method::manifold::build::{SamplerConfig, run_episode};
@@ -29,6 +40,7 @@ use crate::twin::control::ImpedanceGains;
 use crate::twin::geometry::{PartPair, build_builtin, builtin_by_name};
 use crate::twin::robot::urdf::iiwa14;
 use serde::Serialize;
+use std::path::Path;
 use std::time::Instant;
 
 /// How much of each piece to run.
@@ -190,8 +202,7 @@ fn trial_row() -> Result<BenchRow> {
         None,
     )?;
     let wall = t0.elapsed().as_secs_f64();
-    let t = &r.times;
-    let simulated = t.search_s + t.observe_s + t.retract_s + t.align_s + t.insert_s;
+    let simulated = r.times.simulated_s();
     Ok(BenchRow {
         name: "trial_direct".into(),
         what: format!(
@@ -266,6 +277,111 @@ fn registration_row() -> Result<BenchRow> {
         value: t0.elapsed().as_secs_f64(),
         unit: "s".into(),
         real_time_factor: None,
+    })
+}
+
+/// The rows of a campaign of `scenario` (module docs): its manifolds built one by one, the
+/// campaign with them cached, the campaign from an empty cache. Runs on the current thread
+/// pool, in a scratch folder removed afterwards.
+pub fn campaign_rows(scenario: &Scenario) -> Result<Vec<BenchRow>> {
+    let scratch = tempfile::tempdir().map_err(|e| {
+        Error::file(
+            std::env::temp_dir(),
+            format!("cannot make the bench's scratch folder: {e}"),
+        )
+    })?;
+    let cache = scratch.path().join("cache");
+    let mut rows = Vec::new();
+    for trial in one_manifold_trial_per_pair(scenario) {
+        let cell = &scenario.cells()[trial.cell];
+        let watch = Stopwatch::start(rayon::current_num_threads());
+        let options = RunOptions {
+            cache_dir: cache.clone(),
+            progress: &(),
+        };
+        prepare(scenario, &[trial], &options)?;
+        let usage = watch.usage();
+        let spec = &scenario.manifold;
+        rows.push(BenchRow {
+            name: format!("manifold_{}_{}mm", cell.geometry, cell.clearance_mm),
+            what: format!(
+                "reference manifold, {} at {} mm, {} episodes of {} s, built alone: {}",
+                cell.geometry,
+                cell.clearance_mm,
+                spec.episodes,
+                spec.episode_s,
+                usage.describe()
+            ),
+            value: usage.wall_s,
+            unit: "s".into(),
+            real_time_factor: Some(spec.episodes as f64 * spec.episode_s / usage.wall_s),
+        });
+    }
+    let cold_cache = scratch.path().join("empty-cache");
+    for (name, cache, how) in [
+        ("campaign_cached", &cache, "its manifolds cached"),
+        ("campaign_cold", &cold_cache, "from an empty cache"),
+    ] {
+        let out = scratch.path().join(name);
+        rows.push(campaign_row(scenario, name, &out, cache, how)?);
+    }
+    Ok(rows)
+}
+
+/// The first manifold-method trial of each pair the scenario registers against.
+fn one_manifold_trial_per_pair(scenario: &Scenario) -> Vec<TrialSpec> {
+    let cells = scenario.cells();
+    let mut seen = Vec::new();
+    all_trials(scenario)
+        .into_iter()
+        .filter(|t| {
+            let cell = &cells[t.cell];
+            let pair = (cell.geometry.clone(), cell.clearance_mm.to_bits());
+            let first = cell.method == Method::Manifold && !seen.contains(&pair);
+            if first {
+                seen.push(pair);
+            }
+            first
+        })
+        .collect()
+}
+
+/// The whole campaign into `out` with manifolds cached in `cache`: wall time, CPU time and
+/// simulated time of its trials.
+fn campaign_row(
+    scenario: &Scenario,
+    name: &str,
+    out: &Path,
+    cache: &Path,
+    how: &str,
+) -> Result<BenchRow> {
+    let watch = Stopwatch::start(rayon::current_num_threads());
+    let options = CampaignOptions {
+        shard: Shard::WHOLE,
+        resume: false,
+        replays: Replays::None,
+    };
+    let run = RunOptions {
+        cache_dir: cache.to_path_buf(),
+        progress: &(),
+    };
+    let finished = campaign(scenario, out, options, &run)?;
+    let usage = watch.usage();
+    let mut simulated = 0.0;
+    finished
+        .trials
+        .for_each(&mut |r| simulated += r.result.times.simulated_s())?;
+    Ok(BenchRow {
+        name: name.into(),
+        what: format!(
+            "campaign '{}' ({} trials), {how}: {}",
+            scenario.name,
+            finished.count,
+            usage.describe()
+        ),
+        value: usage.wall_s,
+        unit: "s".into(),
+        real_time_factor: Some(simulated / usage.wall_s),
     })
 }
 

@@ -1,7 +1,8 @@
 //! `pegtwin bench`: the speed of a campaign's pieces on this machine.
 
 use clap::Args;
-use pegtwin::campaign::bench::{BenchOptions, run, table};
+use pegtwin::campaign::bench::{BenchOptions, campaign_rows, run, table};
+use pegtwin::campaign::scenario::Scenario;
 use pegtwin::error::{Error, Result};
 
 #[derive(Args)]
@@ -15,6 +16,11 @@ pub struct BenchArgs {
     /// Print the table as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Also time a campaign of this scenario (TOML): each of its reference manifolds built
+    /// alone, the campaign with them cached, and the campaign from an empty cache (in a scratch
+    /// folder, on all cores; the paper scenario takes about 40 minutes on 2 cores).
+    #[arg(long)]
+    pub campaign: Option<std::path::PathBuf>,
 }
 
 /// The most steps one arm scene (or the environment) runs (about 10 minutes of the cross on a
@@ -32,10 +38,14 @@ pub fn bench_command(args: BenchArgs) -> Result<i32> {
             )));
         }
     }
-    let rows = run(&BenchOptions {
+    let scenario = args.campaign.as_deref().map(Scenario::load).transpose()?;
+    let mut rows = run(&BenchOptions {
         arm_steps: args.arm_steps,
         env_steps: args.env_steps,
     })?;
+    if let Some(scenario) = &scenario {
+        rows.extend(campaign_rows(scenario)?);
+    }
     if args.json {
         println!(
             "{}",

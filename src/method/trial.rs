@@ -108,6 +108,13 @@ pub struct PhaseTimes {
     pub insert_s: f64,
 }
 
+impl PhaseTimes {
+    /// Simulated time of the whole trial, s.
+    pub fn simulated_s(&self) -> f64 {
+        self.search_s + self.observe_s + self.retract_s + self.align_s + self.insert_s
+    }
+}
+
 /// The outcome of a trial.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TrialResult {
