@@ -388,7 +388,7 @@ fn campaign_row(
 /// The table as text.
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
-        "{:<18} {:>12} {:>10}  what\n",
+        "{:<24} {:>16} {:>10}  what\n",
         "piece", "figure", "x realtime"
     );
     for r in rows {
@@ -396,7 +396,7 @@ pub fn table(rows: &[BenchRow]) -> String {
             .real_time_factor
             .map_or("-".to_string(), |f| format!("{f:.2}"));
         out += &format!(
-            "{:<18} {:>16} {:>10}  {}\n",
+            "{:<24} {:>16} {:>10}  {}\n",
             r.name,
             format!("{:.2} {}", r.value, r.unit),
             factor,

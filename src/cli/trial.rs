@@ -20,6 +20,47 @@ use pegtwin::twin::geometry::PartPair;
 use pegtwin::twin::robot::RobotModel;
 use std::path::PathBuf;
 
+/// Where a trial's recordings go.
+#[derive(Args)]
+pub struct RecordingArgs {
+    /// Write the time series (time, phase, TCP pose, estimated and true wrench, contact) as CSV.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
+    /// Write a 3-D replay of the trial: one self-contained HTML page (open it in a browser).
+    #[arg(long)]
+    pub replay: Option<PathBuf>,
+}
+
+impl RecordingArgs {
+    /// Refuses, before anything runs, a trace or replay path that cannot be written.
+    fn ensure_writable(&self) -> Result<()> {
+        for path in self.trace.iter().chain(&self.replay) {
+            pegtwin::files::ensure_writable(path)?;
+        }
+        Ok(())
+    }
+
+    /// Runs a trial through `run`, recording it when a trace or a replay is asked for, and
+    /// writes them once it has finished.
+    fn run(
+        &self,
+        (pair, robot, manifold): (&PartPair, &RobotModel, Option<&Manifold>),
+        run: impl FnOnce(Option<&mut dyn Recorder>) -> Result<TrialResult>,
+    ) -> Result<TrialResult> {
+        let mut recorders = (Vec::new(), Replay::new(pair, robot));
+        let recording = self.trace.is_some() || self.replay.is_some();
+        let result = run(recording.then_some(&mut recorders as &mut dyn Recorder))?;
+        let (rows, page) = recorders;
+        if let Some(path) = &self.trace {
+            pegtwin::files::write_atomically(path, &trace_csv(&rows))?;
+        }
+        if let Some(path) = &self.replay {
+            page.write_html(path, &result, manifold)?;
+        }
+        Ok(result)
+    }
+}
+
 /// The library's default offset half-ranges, mm and deg (the paper's U(-5, 5)).
 #[derive(Args)]
 pub struct TrialArgs {
@@ -51,12 +92,8 @@ pub struct TrialArgs {
     /// Print the result as JSON.
     #[arg(long)]
     pub json: bool,
-    /// Write the time series (time, phase, TCP pose, estimated and true wrench, contact) as CSV.
-    #[arg(long)]
-    pub trace: Option<PathBuf>,
-    /// Write a 3-D replay of the trial: one self-contained HTML page (open it in a browser).
-    #[arg(long)]
-    pub replay: Option<PathBuf>,
+    #[command(flatten)]
+    pub recording: RecordingArgs,
 }
 
 impl TrialArgs {
@@ -79,11 +116,10 @@ impl TrialArgs {
 pub fn trial_command(args: TrialArgs) -> Result<i32> {
     let request = args.request();
     let checked = request.check()?;
-    ensure_writable(&args.trace, &args.replay)?;
+    args.recording.ensure_writable()?;
     let trial = request.prepare(checked, &Bars::new(true))?;
-    let result = run_recorded(
+    let result = args.recording.run(
         (&trial.pair, &trial.robot, trial.manifold.as_ref()),
-        (&args.trace, &args.replay),
         |recorder| trial.run(recorder),
     )?;
     if args.json {
@@ -114,12 +150,8 @@ pub struct RerunArgs {
     /// Print the record as one JSON line, the same as the trial's line of trials.jsonl.
     #[arg(long)]
     pub json: bool,
-    /// Write the time series (time, phase, TCP pose, estimated and true wrench, contact) as CSV.
-    #[arg(long)]
-    pub trace: Option<PathBuf>,
-    /// Write a 3-D replay of the trial: one self-contained HTML page (open it in a browser).
-    #[arg(long)]
-    pub replay: Option<PathBuf>,
+    #[command(flatten)]
+    pub recording: RecordingArgs,
 }
 
 pub fn rerun_command(args: RerunArgs) -> Result<i32> {
@@ -128,7 +160,7 @@ pub fn rerun_command(args: RerunArgs) -> Result<i32> {
     } else {
         Scenario::load(&args.campaign)?
     };
-    ensure_writable(&args.trace, &args.replay)?;
+    args.recording.ensure_writable()?;
     let bars = Bars::new(true);
     let options = RunOptions {
         cache_dir: match &args.cache_dir {
@@ -138,11 +170,11 @@ pub fn rerun_command(args: RerunArgs) -> Result<i32> {
         progress: &bars,
     };
     let (spec, prepared) = campaign::single_trial(&scenario, args.cell, args.trial, &options)?;
-    let result = run_recorded(
-        prepared.inputs(&scenario.cells()[spec.cell]),
-        (&args.trace, &args.replay),
-        |recorder| campaign::run_one_recorded(&scenario, &prepared, &spec, recorder),
-    )?;
+    let result = args
+        .recording
+        .run(prepared.inputs(&scenario.cells()[spec.cell]), |recorder| {
+            campaign::run_one_recorded(&scenario, &prepared, &spec, recorder)
+        })?;
     if args.json {
         let record = TrialRecord {
             cell: spec.cell,
@@ -157,34 +189,6 @@ pub fn rerun_command(args: RerunArgs) -> Result<i32> {
         print_result(&result);
     }
     Ok(0)
-}
-
-/// Refuses, before anything runs, a trace or replay path that cannot be written.
-fn ensure_writable(trace: &Option<PathBuf>, replay: &Option<PathBuf>) -> Result<()> {
-    for path in trace.iter().chain(replay) {
-        pegtwin::files::ensure_writable(path)?;
-    }
-    Ok(())
-}
-
-/// Runs a trial through `run`, recording it when a trace or a replay is asked for, and writes
-/// them once it has finished.
-fn run_recorded(
-    (pair, robot, manifold): (&PartPair, &RobotModel, Option<&Manifold>),
-    (trace, replay): (&Option<PathBuf>, &Option<PathBuf>),
-    run: impl FnOnce(Option<&mut dyn Recorder>) -> Result<TrialResult>,
-) -> Result<TrialResult> {
-    let mut recorders = (Vec::new(), Replay::new(pair, robot));
-    let recording = trace.is_some() || replay.is_some();
-    let result = run(recording.then_some(&mut recorders as &mut dyn Recorder))?;
-    let (rows, page) = recorders;
-    if let Some(path) = trace {
-        pegtwin::files::write_atomically(path, &trace_csv(&rows))?;
-    }
-    if let Some(path) = replay {
-        page.write_html(path, &result, manifold)?;
-    }
-    Ok(result)
 }
 
 fn print_result(r: &TrialResult) {
