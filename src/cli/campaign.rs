@@ -92,7 +92,10 @@ pub struct TuneArgs {
     pub cache_dir: Option<PathBuf>,
 }
 
-fn run_options<'a>(cache_dir: &Option<PathBuf>, bars: &'a Bars) -> Result<RunOptions<'a>> {
+pub(super) fn run_options<'a>(
+    cache_dir: &Option<PathBuf>,
+    bars: &'a Bars,
+) -> Result<RunOptions<'a>> {
     Ok(RunOptions {
         cache_dir: match cache_dir {
             Some(d) => d.clone(),

@@ -6,12 +6,11 @@ use super::choices::{MethodArg, StartArg};
 use super::progress::Bars;
 use clap::Args;
 use pegtwin::campaign::records::TrialRecord;
-use pegtwin::campaign::run::{self as campaign, RunOptions};
+use pegtwin::campaign::run as campaign;
 use pegtwin::campaign::scenario::Scenario;
 use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::Manifold;
-use pegtwin::method::manifold::cache;
 use pegtwin::method::request::{TrialRequest, default_offsets_mm_deg};
 use pegtwin::method::session::{Recorder, trace_csv};
 use pegtwin::method::trial::TrialResult;
@@ -162,13 +161,7 @@ pub fn rerun_command(args: RerunArgs) -> Result<i32> {
     };
     args.recording.ensure_writable()?;
     let bars = Bars::new(true);
-    let options = RunOptions {
-        cache_dir: match &args.cache_dir {
-            Some(d) => d.clone(),
-            None => cache::default_dir()?,
-        },
-        progress: &bars,
-    };
+    let options = super::campaign::run_options(&args.cache_dir, &bars)?;
     let (spec, prepared) = campaign::single_trial(&scenario, args.cell, args.trial, &options)?;
     let result = args
         .recording

@@ -306,6 +306,10 @@ impl Cell {
         let n = model.dof();
         let model_tcp = model.tcp_pose(&q0);
         let sensors = Sensors::new(params.sensors.clone(), n, seed)?;
+        let energy = EnergyLedger::new(
+            dt,
+            arm.mechanical_energy(&world, &model.armature, &vec![0.0; n]),
+        );
         let mut cell = Cell {
             world,
             arm,
@@ -326,12 +330,8 @@ impl Cell {
             probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
             penetration_fault_m: pair.clearance_m.max(0.1e-3),
             saturated_at_s: vec![f64::NEG_INFINITY; n],
-            energy: EnergyLedger::new(dt, 0.0),
+            energy,
         };
-        let start_energy = cell
-            .arm
-            .mechanical_energy(&cell.world, &cell.model.armature, &cell.qd);
-        cell.energy = EnergyLedger::new(dt, start_energy);
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.
         let k = cell.model.kinematics(&q0);
         cell.tau = cell
@@ -386,18 +386,13 @@ impl Cell {
     /// travel; the damping's is booked as rapier applies it, implicitly (at the speed after the
     /// step), and the contacts' at the velocities after the step.
     fn step_energy(&self, q_before: &[f64], qd: &[f64], dt: f64) -> StepEnergy {
-        let travel: Vec<f64> = self
-            .arm
-            .q(&self.world)
-            .iter()
-            .zip(q_before)
-            .map(|(q, q0)| q - q0)
-            .collect();
-        let torque_work: f64 = self.tau.iter().zip(&travel).map(|(t, d)| t * d).sum();
-        let damping_work: f64 = (self.model.joints.iter())
-            .zip(travel.iter().zip(qd))
-            .map(|(j, (d, v))| -j.damping * v * d)
-            .sum();
+        let q_after = self.arm.q(&self.world);
+        let travel = q_after.iter().zip(q_before).map(|(q, q0)| q - q0);
+        let (torque_work, damping_work) = (travel.zip(&self.tau).zip(qd))
+            .zip(&self.model.joints)
+            .fold((0.0, 0.0), |(t, d), (((dq, tau), v), j)| {
+                (t + tau * dq, d - j.damping * v * dq)
+            });
         StepEnergy {
             mechanical_j: self
                 .arm

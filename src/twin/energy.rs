@@ -115,9 +115,9 @@ pub struct StepEnergy {
 
 /// The last [`WINDOW_S`] of the account, one entry per step.
 pub struct EnergyLedger {
+    /// Never empty: it opens with the start.
     entries: VecDeque<Totals>,
     capacity: usize,
-    last: Totals,
 }
 
 impl EnergyLedger {
@@ -130,33 +130,35 @@ impl EnergyLedger {
         };
         let mut entries = VecDeque::with_capacity(capacity);
         entries.push_back(start);
-        EnergyLedger {
-            entries,
-            capacity,
-            last: start,
-        }
+        EnergyLedger { entries, capacity }
+    }
+
+    fn last(&self) -> Totals {
+        *self
+            .entries
+            .back()
+            .expect("the ledger opens with the start")
     }
 
     /// Books one step ending at `time_s`.
     pub fn book(&mut self, time_s: f64, step: StepEnergy) {
+        let last = self.last();
         let t = Totals {
             time_s,
             mechanical_j: step.mechanical_j,
-            drives_j: self.last.drives_j + step.drives_j,
-            contacts_j: self.last.contacts_j + step.contacts_j,
-            damping_j: self.last.damping_j + step.damping_j,
+            drives_j: last.drives_j + step.drives_j,
+            contacts_j: last.contacts_j + step.contacts_j,
+            damping_j: last.damping_j + step.damping_j,
         };
         if self.entries.len() == self.capacity {
             self.entries.pop_front();
         }
         self.entries.push_back(t);
-        self.last = t;
     }
 
     /// The account of the last [`WINDOW_S`] (or of the whole run, when shorter).
     pub fn flows(&self) -> EnergyFlows {
-        let first = self.entries.front().copied().unwrap_or_default();
-        let last = self.last;
+        let (first, last) = (self.entries[0], self.last());
         let mechanical_gain_j = last.mechanical_j - first.mechanical_j;
         let drives_j = last.drives_j - first.drives_j;
         let contacts_j = last.contacts_j - first.contacts_j;
