@@ -44,3 +44,24 @@ fn the_cross_at_1_mm_passes_every_arm_case() {
         "the floor carries the press: {floor:?}"
     );
 }
+
+#[test]
+fn with_position_projection_the_cross_at_0_1_mm_passes_every_arm_case_within_5_um() {
+    // Without it the probing and sampling cases keep 15 and 39 um (docs/physics.md).
+    let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.1e-3).unwrap();
+    let mut params = CellParams::default();
+    params.physics.position_projection = true;
+    let report = validate_arm(
+        &pair,
+        &iiwa14().unwrap(),
+        &params,
+        &TrialConfig::default(),
+        &SamplerConfig::default(),
+    )
+    .unwrap();
+    for c in &report.cases {
+        assert!(c.passed, "{}: {} ({:?})", c.name, c.observed, c.fault);
+        assert!(c.max_penetration_mm <= 0.005, "{c:?}");
+    }
+    assert!(report.passed && report.physics.position_projection);
+}

@@ -257,6 +257,9 @@ pub struct PhysicsOverride {
     pub contact_frequency_hz: Option<f64>,
     /// Coulomb friction between peg and hole.
     pub friction: Option<f64>,
+    /// Position projection of the arm's peg after every step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_projection: Option<bool>,
 }
 
 /// `[[pair_physics]]`: physics parameters for one geometry (or assembly), at one clearance or
@@ -288,6 +291,7 @@ impl PhysicsOverride {
         ph.pgs_iterations = self.pgs_iterations.unwrap_or(ph.pgs_iterations);
         ph.contact_frequency_hz = self.contact_frequency_hz.unwrap_or(ph.contact_frequency_hz);
         ph.friction = self.friction.unwrap_or(ph.friction);
+        ph.position_projection = self.position_projection.unwrap_or(ph.position_projection);
     }
 }
 
@@ -773,6 +777,19 @@ friction = 0.2
             method: Method::Manifold,
             t_obs_s: 6.0,
         }
+    }
+
+    #[test]
+    fn position_projection_is_off_unless_physics_turns_it_on() {
+        let plain = Scenario::parse(TWO_PAIRS).unwrap();
+        assert!(!plain.cell_params().physics.position_projection);
+        let text = TWO_PAIRS.replace("[physics]\n", "[physics]\nposition_projection = true\n");
+        let on = Scenario::parse(&text).unwrap();
+        assert!(
+            on.cell_params_for(&cell("gear", 0.1))
+                .physics
+                .position_projection
+        );
     }
 
     #[test]

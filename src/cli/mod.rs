@@ -173,6 +173,10 @@ pub struct ValidateArgs {
     /// controller at the trials' gains (and the manifold sampler's), instead of the free peg.
     #[arg(long)]
     pub arm: bool,
+    /// With --arm: end every physics step with a position projection of the peg out of what it
+    /// still overlaps (a scenario's `[physics] position_projection = true`).
+    #[arg(long, requires = "arm")]
+    pub position_projection: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,

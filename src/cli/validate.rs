@@ -13,7 +13,8 @@ use serde::Serialize;
 pub fn validate_command(args: ValidateArgs) -> Result<i32> {
     let pair = args.pair.build()?;
     let passed = if args.arm {
-        let (robot, params) = args.pair.robot()?;
+        let (robot, mut params) = args.pair.robot()?;
+        params.physics.position_projection = args.position_projection;
         let report = validate_arm(
             &pair,
             &robot,
@@ -52,13 +53,18 @@ fn verdict(passed: bool) -> &'static str {
 
 fn print_arm_validation(r: &ArmValidationReport) {
     println!(
-        "validate --arm {} at {} mm clearance (penetration limit {:.4} mm; {}, {} Gauss-Seidel passes x {} substeps)",
+        "validate --arm {} at {} mm clearance (penetration limit {:.4} mm; {}, {} Gauss-Seidel passes x {} substeps{})",
         r.geometry,
         r.clearance_mm,
         r.penetration_limit_mm,
         r.robot,
         r.physics.pgs_iterations,
-        r.physics.solver_iterations
+        r.physics.solver_iterations,
+        if r.physics.position_projection {
+            ", position projection"
+        } else {
+            ""
+        }
     );
     for c in &r.cases {
         println!(

@@ -13,6 +13,7 @@ use crate::twin::energy::{EnergyFlows, EnergyLedger, StepEnergy};
 use crate::twin::geometry::PartPair;
 use crate::twin::physics::arm::Arm;
 use crate::twin::physics::penetration::PenetrationProbe;
+use crate::twin::physics::projection;
 use crate::twin::physics::{
     PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
     set_prediction_for_speed, v64,
@@ -163,6 +164,8 @@ pub struct Cell {
     saturated_at_s: Vec<f64>,
     /// The arm's energy account of the last 100 ms (who pays for a fault).
     energy: EnergyLedger,
+    /// Whether each step ends with a position projection (`PhysicsParams::position_projection`).
+    position_projection: bool,
 }
 
 /// What the robot reports, as of its last control cycle: the only inputs of the method.
@@ -248,6 +251,8 @@ impl SimFault {
     }
 }
 
+/// Rounds of position projection per step at most.
+const PROJECTION_ROUNDS: usize = 3;
 /// Steps between exact penetration checks.
 const PENETRATION_CHECK_STEPS: u64 = 250;
 /// A joint faster than this multiple of its speed limit is a runaway.
@@ -331,6 +336,7 @@ impl Cell {
             penetration_fault_m: pair.clearance_m.max(0.1e-3),
             saturated_at_s: vec![f64::NEG_INFINITY; n],
             energy,
+            position_projection: params.physics.position_projection,
         };
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.
         let k = cell.model.kinematics(&q0);
@@ -378,6 +384,38 @@ impl Cell {
         let booked = self.step_energy(&q_before, &qd, dt);
         self.energy.book(self.time_s(), booked);
         self.qd = qd;
+        if self.position_projection {
+            self.project_out_penetration();
+        }
+    }
+
+    /// Moves the arm out of what its peg still overlaps after the step
+    /// ([`crate::twin::physics::projection`]), measured on the exact pieces; a few rounds, as
+    /// a projection is a linearisation.
+    fn project_out_penetration(&mut self) {
+        let Some((probe, peg)) = &self.probe else {
+            return;
+        };
+        let mut depth = -crate::twin::physics::min_solver_gap(&self.world, self.peg);
+        if depth < projection::SOLVER_TRIGGER_M {
+            return;
+        }
+        for _ in 0..PROJECTION_ROUNDS {
+            let q = self.arm.q(&self.world);
+            let tcp = self.model.tcp_pose(&q);
+            let rows = probe.gap_rows(peg, &tcp, projection::reach_m(depth));
+            let Some(dq) = projection::projection(
+                &self.model,
+                &q,
+                &self.arm.world_t_base,
+                &rows,
+                self.peg_reach_m,
+            ) else {
+                return;
+            };
+            depth = -rows.iter().map(|r| r.gap_m).fold(0.0, f64::min);
+            self.arm.displace(&mut self.world, dq.as_slice());
+        }
     }
 
     /// The arm's energy after the step and the work done on it during the step, from the joint

@@ -182,6 +182,19 @@ impl Arm {
         }
     }
 
+    /// Moves the joints by `dq` (rad, or m on prismatic joints) without touching their speeds,
+    /// and the links' bodies with them.
+    pub fn displace(&self, world: &mut PhysicsWorld, dq: &[f64]) {
+        let (mb, _) = world
+            .multibody_joints
+            .get_mut(self.joints[0])
+            .expect("arm joints exist");
+        let disp: Vec<f32> = dq.iter().map(|&v| v as f32).collect();
+        mb.apply_displacements(&disp);
+        mb.forward_kinematics(&world.bodies, false);
+        mb.update_rigid_bodies(&mut world.bodies, true);
+    }
+
     /// Body of the last link (the one carrying the flange and the tool).
     pub fn last_body(&self) -> RigidBodyHandle {
         *self.bodies.last().expect("at least one link")

@@ -5,6 +5,9 @@
 
 use crate::twin::geometry::solid::{ConvexPiece, P3, Solid};
 use nalgebra::{Isometry3, Vector3};
+use rapier3d::parry::bounding_volume::Aabb;
+use rapier3d::parry::math::Vector;
+use rapier3d::parry::partitioning::{Bvh, BvhBuildStrategy};
 
 /// A convex piece's vertices, face normals and edge directions placed in the world.
 struct Posed {
@@ -17,13 +20,7 @@ struct Posed {
 impl Posed {
     fn new(piece: &ConvexPiece, iso: &Isometry3<f64>) -> Self {
         let vertices: Vec<P3> = piece.vertices.iter().map(|p| iso * p).collect();
-        let bounds = vertices.iter().fold(
-            (
-                P3::new(f64::MAX, f64::MAX, f64::MAX),
-                P3::new(f64::MIN, f64::MIN, f64::MIN),
-            ),
-            |(lo, hi), p| (lo.inf(p), hi.sup(p)),
-        );
+        let bounds = bounds_of(vertices.iter().copied());
         Posed {
             vertices,
             face_normals: piece.face_normals.iter().map(|n| iso * n).collect(),
@@ -65,6 +62,47 @@ fn posed_penetration(a: &Posed, b: &Posed) -> f64 {
     depth.max(0.0)
 }
 
+/// The least overlap (metres; negative: the separation) of `moving` with `fixed` and the unit
+/// direction that opens it by moving `moving`; `None` as soon as an axis separates them by more
+/// than `margin` (metres). The face normals of both come first; only a pair they leave
+/// overlapping is tried on the edge-pair axes, which give the exact depth as in
+/// [`posed_penetration`]. A pair the face normals separate keeps the largest separation among
+/// them: a lower bound on its distance, which is what a projection must not close.
+fn least_overlap(moving: &Posed, fixed: &Posed, margin: f64) -> Option<(f64, Vector3<f64>)> {
+    let mut best = (f64::INFINITY, Vector3::z());
+    let mut test = |axis: Vector3<f64>| {
+        let (m0, m1) = project(&moving.vertices, &axis);
+        let (f0, f1) = project(&fixed.vertices, &axis);
+        // Move `moving` along -axis by m1 - f0, or along +axis by f1 - m0.
+        for (overlap, opening) in [(m1 - f0, -axis), (f1 - m0, axis)] {
+            if overlap < best.0 {
+                best = (overlap, opening);
+            }
+        }
+        best.0
+    };
+    let mut least = f64::INFINITY;
+    for n in moving.face_normals.iter().chain(&fixed.face_normals) {
+        least = test(*n);
+        if least < -margin {
+            return None;
+        }
+    }
+    if least <= 0.0 {
+        return Some(best);
+    }
+    'edges: for ea in &moving.edge_dirs {
+        for eb in &fixed.edge_dirs {
+            let c = ea.cross(eb);
+            let len = c.norm();
+            if len > 1e-9 && test(c / len) <= 0.0 {
+                break 'edges;
+            }
+        }
+    }
+    Some(best)
+}
+
 fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
     points
         .iter()
@@ -74,21 +112,83 @@ fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
         })
 }
 
-fn overlaps(a: &(P3, P3), b: &(P3, P3)) -> bool {
-    (0..3).all(|i| a.0[i] <= b.1[i] && b.0[i] <= a.1[i])
+/// Whether two bounding boxes come within `margin` (metres) of each other on every axis.
+fn within(a: &(P3, P3), b: &(P3, P3), margin: f64) -> bool {
+    (0..3).all(|i| a.0[i] <= b.1[i] + margin && b.0[i] <= a.1[i] + margin)
+}
+
+/// One piece pair of a moving solid against the fixed one, for a position projection: the
+/// moving piece's deepest point along the pair's least-overlap axis and the direction that opens
+/// the pair (world frame), and the gap along that axis (metres; negative: overlapping).
+#[derive(Clone, Copy, Debug)]
+pub struct GapRow {
+    pub point: P3,
+    pub opening: Vector3<f64>,
+    pub gap_m: f64,
 }
 
 /// Precomputed pieces and bounds of a fixed solid, for repeated penetration queries.
 pub struct PenetrationProbe {
     fixed: Vec<Posed>,
+    /// The fixed pieces' bounds (f32, loosened by `TREE_SLACK_M`), to find the pieces near a
+    /// moving one without testing every pair; the exact f64 test follows.
+    tree: Bvh,
+}
+
+/// How much the tree's f32 boxes are loosened, metres: far above the f32 rounding of
+/// coordinates within a few metres of the origin (under 0.5 um).
+const TREE_SLACK_M: f64 = 10e-6;
+
+/// The bounds of points, smallest and largest corner.
+fn bounds_of(points: impl Iterator<Item = P3>) -> (P3, P3) {
+    points.fold(
+        (
+            P3::new(f64::MAX, f64::MAX, f64::MAX),
+            P3::new(f64::MIN, f64::MIN, f64::MIN),
+        ),
+        |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),
+    )
+}
+
+/// A box of the tree: `bounds` loosened by `margin` and `TREE_SLACK_M`.
+fn tree_box((lo, hi): &(P3, P3), margin: f64) -> Aabb {
+    let m = margin + TREE_SLACK_M;
+    let corner = |p: &P3, s: f64| Vector::new((p.x + s) as f32, (p.y + s) as f32, (p.z + s) as f32);
+    Aabb::new(corner(lo, -m), corner(hi, m))
 }
 
 impl PenetrationProbe {
     /// Prepares the fixed solid placed at `pose` in the world.
     pub fn new(fixed: &Solid, pose: &Isometry3<f64>) -> Self {
+        let fixed: Vec<Posed> = fixed.pieces.iter().map(|p| Posed::new(p, pose)).collect();
+        let boxes: Vec<Aabb> = fixed.iter().map(|f| tree_box(&f.bounds, 0.0)).collect();
         PenetrationProbe {
-            fixed: fixed.pieces.iter().map(|p| Posed::new(p, pose)).collect(),
+            tree: Bvh::from_leaves(BvhBuildStrategy::Binned, &boxes),
+            fixed,
         }
+    }
+
+    /// The fixed pieces whose bounds come within `margin` (metres) of those of `piece` at
+    /// `pose`, in index order; `None` when there are none (the piece is not placed then).
+    fn near(
+        &self,
+        piece: &ConvexPiece,
+        pose: &Isometry3<f64>,
+        margin: f64,
+    ) -> Option<(Posed, Vec<usize>)> {
+        let bounds = bounds_of(piece.vertices.iter().map(|p| pose * p));
+        let query = tree_box(&bounds, margin);
+        let mut near: Vec<usize> = self
+            .tree
+            .intersect_aabb(&query)
+            .map(|i| i as usize)
+            .filter(|&i| within(&bounds, &self.fixed[i].bounds, margin))
+            .collect();
+        if near.is_empty() {
+            return None;
+        }
+        near.sort_unstable();
+        Some((Posed::new(piece, pose), near))
     }
 
     /// The largest penetration depth (metres) between `moving` placed at `pose` and the fixed
@@ -101,14 +201,42 @@ impl PenetrationProbe {
             .fold(0.0, f64::max)
     }
 
+    /// Every pair of a piece of `moving` at `pose` and a piece of the fixed solid whose bounds
+    /// come within `margin_m`, as a [`GapRow`].
+    pub fn gap_rows(&self, moving: &Solid, pose: &Isometry3<f64>, margin_m: f64) -> Vec<GapRow> {
+        let mut rows = Vec::new();
+        for piece in &moving.pieces {
+            let Some((posed, near)) = self.near(piece, pose, margin_m) else {
+                continue;
+            };
+            for fixed in near.iter().map(|&i| &self.fixed[i]) {
+                let Some((overlap, opening)) = least_overlap(&posed, fixed, margin_m) else {
+                    continue;
+                };
+                let point = posed
+                    .vertices
+                    .iter()
+                    .min_by(|a, b| a.coords.dot(&opening).total_cmp(&b.coords.dot(&opening)))
+                    .copied()
+                    .expect("a convex piece has vertices");
+                rows.push(GapRow {
+                    point,
+                    opening,
+                    gap_m: -overlap,
+                });
+            }
+        }
+        rows
+    }
+
     /// The largest penetration depth (metres) between one convex `piece` placed at `pose` and
     /// the fixed solid.
     pub fn piece_penetration(&self, piece: &ConvexPiece, pose: &Isometry3<f64>) -> f64 {
-        let posed = Posed::new(piece, pose);
-        self.fixed
-            .iter()
-            .filter(|fixed| overlaps(&posed.bounds, &fixed.bounds))
-            .map(|fixed| posed_penetration(&posed, fixed))
+        let Some((posed, near)) = self.near(piece, pose, 0.0) else {
+            return 0.0;
+        };
+        near.iter()
+            .map(|&i| posed_penetration(&posed, &self.fixed[i]))
             .fold(0.0, f64::max)
     }
 }
@@ -117,7 +245,7 @@ impl PenetrationProbe {
 mod tests {
     use super::*;
     use crate::twin::geometry::planar::rect;
-    use crate::twin::geometry::solid::ZPlane;
+    use crate::twin::geometry::solid::{Solid, ZPlane};
 
     fn cube(x: f64, y: f64, z: f64) -> ConvexPiece {
         ConvexPiece::slab(
@@ -139,6 +267,35 @@ mod tests {
         // Tiny overlaps are measured, not inflated (the engine reported 9.9 mm for 1.6 um).
         let d = piece_penetration(&cube(0.0, 0.0, 0.0), &cube(1.0 - 1.6e-6, 0.3, 0.3));
         assert!((d - 1.6e-6).abs() < 1e-12, "{d}");
+    }
+
+    #[test]
+    fn gap_rows_open_an_overlap_the_short_way_and_keep_near_pairs() {
+        let solid = |pieces| Solid {
+            pieces,
+            boundary: None,
+        };
+        let fixed = solid(vec![cube(0.0, 0.0, 0.0), cube(3.0, 0.0, 0.0)]);
+        let probe = PenetrationProbe::new(&fixed, &Isometry3::identity());
+        // A unit cube 2 um into the first along x, 30 um short of the second.
+        let moving = solid(vec![
+            cube(1.0 - 2e-6, 0.2, 0.1),
+            cube(2.0 - 30e-6, 0.2, 0.1),
+        ]);
+        let pose = Isometry3::identity();
+        let rows = probe.gap_rows(&moving, &pose, 50e-6);
+        assert_eq!(rows.len(), 2, "{rows:?}");
+        assert!(
+            (rows[0].gap_m + 2e-6).abs() < 1e-12 && rows[0].opening.x > 0.999,
+            "{rows:?}"
+        );
+        assert!((rows[0].point.x - (1.0 - 2e-6)).abs() < 1e-12, "{rows:?}");
+        assert!(
+            (rows[1].gap_m - 30e-6).abs() < 1e-12 && rows[1].opening.x < -0.999,
+            "{rows:?}"
+        );
+        // Beyond the margin, the second pair is left out.
+        assert_eq!(probe.gap_rows(&moving, &pose, 10e-6).len(), 1);
     }
 
     #[test]
