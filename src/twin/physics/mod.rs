@@ -46,8 +46,10 @@ pub struct PhysicsParams {
     /// Coulomb friction coefficient between peg and hole.
     pub friction: f64,
     /// Position projection of the arm's peg after every step (`projection`): what its exact
-    /// pieces still overlap after the velocity-level solve is moved out. Off by default (every
-    /// published figure was measured without it); the arm cell only.
+    /// pieces still overlap after the velocity-level solve is moved out. Experimental and off by
+    /// default: it takes `validate --arm`'s motion cases at 0.1 mm from 12-43 um to under 2 um
+    /// on four built-ins, but it lowers the smoke campaign's manifold success at 0.5 mm from 6/8
+    /// to 1/8 (docs/physics.md, "Position projection"); the arm cell only.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub position_projection: bool,
 }

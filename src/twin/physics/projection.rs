@@ -9,6 +9,8 @@
 //! of the row's projected mass times omega^2: 12-95 um under a few hundred newtons in the
 //! motion cases of `validate --arm`, docs/physics.md "The arm at 0.1 mm"), which at a 0.1 mm fit
 //! is a fifth of the gap. The arm cell runs it when `PhysicsParams::position_projection` is set.
+//! Experimental: it makes the campaigns' estimates worse and their insertions jam (measured in
+//! docs/physics.md), and the twisted gear's rows can admit no displacement at all.
 //!
 //! - The rows come from the exact pieces in f64 (`penetration::PenetrationProbe::gap_rows`): per
 //!   piece pair, the axis of least overlap, the direction that opens it and the peg's deepest
