@@ -183,7 +183,11 @@ impl Arm {
     }
 
     /// Moves the joints by `dq` (rad, or m on prismatic joints) without touching their speeds,
-    /// and the links' bodies with them.
+    /// and the links' bodies and colliders with them. The bodies are moved through
+    /// `RigidBody::set_position`, which flags the change: rapier's `update_rigid_bodies` writes
+    /// the poses without the flag, and the colliders then stay where the step left them until
+    /// the end of the next step, so the next narrow phase measures the contacts at the pose
+    /// before the displacement.
     pub fn displace(&self, world: &mut PhysicsWorld, dq: &[f64]) {
         let (mb, _) = world
             .multibody_joints
@@ -192,7 +196,9 @@ impl Arm {
         let disp: Vec<f32> = dq.iter().map(|&v| v as f32).collect();
         mb.apply_displacements(&disp);
         mb.forward_kinematics(&world.bodies, false);
-        mb.update_rigid_bodies(&mut world.bodies, true);
+        for link in mb.links().skip(1) {
+            world.bodies[link.rigid_body_handle()].set_position(*link.local_to_world(), false);
+        }
     }
 
     /// Body of the last link (the one carrying the flange and the tool).
