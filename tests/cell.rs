@@ -6,6 +6,7 @@ use pegtwin::twin::control::{ImpedanceGains, JointPositionGains, Mode};
 use pegtwin::twin::diagnostics::{PushTest, measure_stiffness};
 use pegtwin::twin::energy::EnergySource;
 use pegtwin::twin::geometry::{PartPair, build_builtin, builtin_by_name};
+use pegtwin::twin::physics::ArmContacts;
 use pegtwin::twin::physics::penetration::PenetrationProbe;
 use pegtwin::twin::robot::Iso;
 use pegtwin::twin::robot::urdf::iiwa14;
@@ -285,4 +286,31 @@ fn a_drive_asked_for_more_than_its_torque_limit_is_named_until_100_ms_after() {
     cell.command_pose(start);
     cell.run(1.0);
     assert!(cell.saturated_joints().is_empty(), "settled back");
+}
+
+#[test]
+fn joint_space_contacts_carry_the_rim_press_with_an_estimate_within_1_n_and_a_closed_account() {
+    let pair = cross(0.1e-3);
+    let mut params = CellParams::default();
+    params.physics.arm_contacts = ArmContacts::JointSpace;
+    let hole = nominal_hole_pose(&pair, &params);
+    let start = tcp_in_hole(&hole, -0.001) * Iso::translation(0.001, 0.0, 0.0);
+    let (cell, worst) = press_down(&pair, start, 0.01, &params);
+    assert!(depth_m(&cell) < 0.1e-3, "depth {}", depth_m(&cell));
+    assert!(worst <= 1e-6, "penetration {worst} m");
+    let truth = cell.truth().contact_wrench();
+    let f_true = truth.fixed_rows::<3>(0).into_owned();
+    let f_est = cell.measurements().wrench.fixed_rows::<3>(0).into_owned();
+    assert!(f_true.z > 10.0, "the rim carries the press: {f_true}");
+    let noise = 3.0 * params.sensors.torque_noise_nm;
+    assert!(
+        (f_est - f_true).norm() < 1.0 + noise,
+        "estimated {f_est} true {f_true}"
+    );
+    let f = cell.energy_flows();
+    assert!(f.contacts_j <= 1e-3, "contacts put energy in: {f:?}");
+    assert!(
+        f.integration_j.abs() <= 1e-3,
+        "the account does not close: {f:?}"
+    );
 }

@@ -38,6 +38,7 @@ use crate::pose::{Iso, Pose6, PoseMetric};
 use crate::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use crate::twin::control::ImpedanceGains;
 use crate::twin::geometry::{PartPair, build_builtin, builtin_by_name};
+use crate::twin::physics::ArmContacts;
 use crate::twin::robot::urdf::iiwa14;
 use serde::Serialize;
 use std::path::Path;
@@ -93,12 +94,16 @@ pub fn probing_target(start: &Iso, t_s: f64) -> Iso {
 
 /// The arm scene of `geometry` at 0.1 mm: the cell with the peg 5 mm in its hole under 500 N/m,
 /// settled for [`SETTLE_STEPS`] steps of probing, and the start pose the probing is about.
-pub fn arm_scene(geometry: &str) -> Result<(Cell, Iso)> {
-    arm_scene_of(&build_builtin(builtin_by_name(geometry)?, 0.1e-3)?)
+pub fn arm_scene(geometry: &str, contacts: ArmContacts) -> Result<(Cell, Iso)> {
+    arm_scene_of(
+        &build_builtin(builtin_by_name(geometry)?, 0.1e-3)?,
+        contacts,
+    )
 }
 
-fn arm_scene_of(pair: &PartPair) -> Result<(Cell, Iso)> {
-    let params = CellParams::default();
+fn arm_scene_of(pair: &PartPair, contacts: ArmContacts) -> Result<(Cell, Iso)> {
+    let mut params = CellParams::default();
+    params.physics.arm_contacts = contacts;
     let hole = nominal_hole_pose(pair, &params);
     let start = tcp_in_hole(&hole, 0.005);
     let gains = ImpedanceGains::uniform(500.0, 20.0, 0.7);
@@ -131,8 +136,10 @@ fn contacts_per_step(cell: &mut Cell, start: &Iso, steps: usize) -> f64 {
 pub fn run(options: &BenchOptions) -> Result<Vec<BenchRow>> {
     let gear_steps = (options.arm_steps / 10).max(1);
     Ok(vec![
-        arm_row("cross", options.arm_steps)?,
-        arm_row("gear", gear_steps)?,
+        arm_row("cross", options.arm_steps, ArmContacts::Rapier)?,
+        arm_row("gear", gear_steps, ArmContacts::Rapier)?,
+        arm_row("cross", options.arm_steps, ArmContacts::JointSpace)?,
+        arm_row("gear", gear_steps, ArmContacts::JointSpace)?,
         episode_row()?,
         trial_row()?,
         env_row(options.env_steps)?,
@@ -140,20 +147,27 @@ pub fn run(options: &BenchOptions) -> Result<Vec<BenchRow>> {
     ])
 }
 
-fn arm_row(geometry: &str, steps: usize) -> Result<BenchRow> {
+fn arm_row(geometry: &str, steps: usize, solver: ArmContacts) -> Result<BenchRow> {
     let pair = build_builtin(builtin_by_name(geometry)?, 0.1e-3)?;
-    let (mut cell, start) = arm_scene_of(&pair)?;
+    let (mut cell, start) = arm_scene_of(&pair, solver)?;
     let dt = cell.dt_s();
     let t0 = Instant::now();
     probe(&mut cell, &start, steps);
     let rate = steps as f64 / t0.elapsed().as_secs_f64();
     let contacts = contacts_per_step(&mut cell, &start, steps.min(100));
     Ok(BenchRow {
-        name: format!("arm_{geometry}"),
+        name: match solver {
+            ArmContacts::Rapier => format!("arm_{geometry}"),
+            ArmContacts::JointSpace => format!("arm_{geometry}_joint_space"),
+        },
         what: format!(
-            "arm cell, iiwa 14 + {geometry} at 0.1 mm ({} + {} convex pieces, {contacts:.0} contact points), probing, {steps} steps, one core",
+            "arm cell, iiwa 14 + {geometry} at 0.1 mm ({} + {} convex pieces, {contacts:.0} contact points{}), probing, {steps} steps, one core",
             pair.peg.pieces.len(),
             pair.hole.pieces.len(),
+            match solver {
+                ArmContacts::Rapier => "",
+                ArmContacts::JointSpace => ", joint-space contacts",
+            },
         ),
         value: rate,
         unit: "steps/s".into(),

@@ -260,6 +260,9 @@ pub struct PhysicsOverride {
     /// Position projection of the arm's peg after every step.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub position_projection: Option<bool>,
+    /// Who solves the arm's peg contacts: `"rapier"` (default) or `"joint_space"` (experimental).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arm_contacts: Option<crate::twin::physics::ArmContacts>,
 }
 
 /// `[[pair_physics]]`: physics parameters for one geometry (or assembly), at one clearance or
@@ -292,6 +295,7 @@ impl PhysicsOverride {
         ph.contact_frequency_hz = self.contact_frequency_hz.unwrap_or(ph.contact_frequency_hz);
         ph.friction = self.friction.unwrap_or(ph.friction);
         ph.position_projection = self.position_projection.unwrap_or(ph.position_projection);
+        ph.arm_contacts = self.arm_contacts.unwrap_or(ph.arm_contacts);
     }
 }
 
@@ -789,6 +793,26 @@ friction = 0.2
             on.cell_params_for(&cell("gear", 0.1))
                 .physics
                 .position_projection
+        );
+    }
+
+    #[test]
+    fn arm_contacts_are_rapiers_unless_physics_names_the_joint_space_solve() {
+        use crate::twin::physics::ArmContacts;
+        let plain = Scenario::parse(TWO_PAIRS).unwrap();
+        assert_eq!(
+            plain.cell_params().physics.arm_contacts,
+            ArmContacts::Rapier
+        );
+        let text = TWO_PAIRS.replace("[physics]\n", "[physics]\narm_contacts = \"joint_space\"\n");
+        let on = Scenario::parse(&text).unwrap();
+        let physics = on.cell_params_for(&cell("gear", 0.1)).physics;
+        assert_eq!(physics.arm_contacts, ArmContacts::JointSpace);
+        let bad = TWO_PAIRS.replace("[physics]\n", "[physics]\narm_contacts = \"newton\"\n");
+        let err = Scenario::parse(&bad).unwrap_err().to_string();
+        assert!(
+            err.contains("arm_contacts") || err.contains("joint_space"),
+            "{err}"
         );
     }
 

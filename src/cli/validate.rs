@@ -5,7 +5,7 @@ use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::SamplerConfig;
 use pegtwin::method::validate_arm::{ArmValidationReport, validate_arm};
-use pegtwin::twin::physics::PhysicsParams;
+use pegtwin::twin::physics::{ArmContacts, PhysicsParams};
 use pegtwin::twin::validate::{FreePegGains, ValidationReport, validate};
 use serde::Serialize;
 
@@ -15,6 +15,9 @@ pub fn validate_command(args: ValidateArgs) -> Result<i32> {
     let passed = if args.arm {
         let (robot, mut params) = args.pair.robot()?;
         params.physics.position_projection = args.position_projection;
+        if args.joint_space_contacts {
+            params.physics.arm_contacts = ArmContacts::JointSpace;
+        }
         let report = validate_arm(
             &pair,
             &robot,
@@ -60,10 +63,11 @@ fn print_arm_validation(r: &ArmValidationReport) {
         r.robot,
         r.physics.pgs_iterations,
         r.physics.solver_iterations,
-        if r.physics.position_projection {
-            ", position projection"
-        } else {
-            ""
+        match (r.physics.position_projection, r.physics.arm_contacts) {
+            (false, ArmContacts::Rapier) => "",
+            (true, ArmContacts::Rapier) => ", position projection",
+            (false, ArmContacts::JointSpace) => ", joint-space contacts",
+            (true, ArmContacts::JointSpace) => ", joint-space contacts, position projection",
         }
     );
     for c in &r.cases {

@@ -12,17 +12,18 @@ use crate::twin::control::{Controller, ControllerParams, ImpedanceGains, Mode};
 use crate::twin::energy::{EnergyFlows, EnergyLedger, StepEnergy};
 use crate::twin::geometry::PartPair;
 use crate::twin::physics::arm::Arm;
+use crate::twin::physics::joint_contacts::{self, ContactSolve};
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::physics::projection;
 use crate::twin::physics::{
-    PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
+    ArmContacts, PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
     set_prediction_for_speed, v64,
 };
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::robot::{Inertial, Iso, RobotModel, Tool};
 use crate::twin::sensing::{SensorParams, Sensors, Wrench6};
 use nalgebra::{DVector, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
-use rapier3d::prelude::{ColliderBuilder, ColliderHandle, PhysicsWorld};
+use rapier3d::prelude::{ColliderBuilder, ColliderHandle, InteractionGroups, PhysicsWorld};
 use serde::{Deserialize, Serialize};
 
 /// Solver iterations (substeps) of the arm cell. rapier rebuilds the multibody's mass matrix in
@@ -166,6 +167,12 @@ pub struct Cell {
     energy: EnergyLedger,
     /// Whether each step ends with a position projection (`PhysicsParams::position_projection`).
     position_projection: bool,
+    /// Whether the peg's contacts are solved in joint space (`PhysicsParams::arm_contacts`), and
+    /// what that solve did in the last step (`None`: no contact, or rapier solves them).
+    joint_space_contacts: bool,
+    peg_contacts: Option<ContactSolve>,
+    /// Coulomb friction between the peg and what it touches.
+    friction: f64,
 }
 
 /// What the robot reports, as of its last control cycle: the only inputs of the method.
@@ -203,6 +210,9 @@ impl Truth<'_> {
 
     /// Contact points the solver handled on the peg in the last step.
     pub fn solver_contacts(&self) -> usize {
+        if self.cell.joint_space_contacts {
+            return self.cell.peg_contacts.as_ref().map_or(0, |c| c.points);
+        }
         crate::twin::physics::solver_contact_count(&self.cell.world, self.cell.peg)
     }
 
@@ -218,6 +228,17 @@ impl Truth<'_> {
 
     /// True contact wrench on the peg from the physics (base frame, torque about the TCP).
     pub fn contact_wrench(&self) -> Wrench6 {
+        if self.cell.joint_space_contacts {
+            // Already in the base frame, about the TCP at the start of the step.
+            return self
+                .cell
+                .peg_contacts
+                .as_ref()
+                .map_or(Wrench6::zeros(), |c| {
+                    let (f, t) = (c.force, c.torque);
+                    Vector6::new(f.x, f.y, f.z, t.x, t.y, t.z)
+                });
+        }
         let tcp = self.tcp_pose().translation.vector;
         let w = contact_wrench(&self.cell.world, self.cell.peg, tcp);
         let r = self.cell.arm.world_t_base.rotation.inverse();
@@ -285,7 +306,12 @@ impl Cell {
         if let Some(hole) = &base_t_hole {
             add_fixed(&mut world, &pair.hole, hole, friction);
         }
-        let peg_collider = compound_collider(&pair.peg, friction).density(0.0);
+        let joint_space_contacts = params.physics.arm_contacts == ArmContacts::JointSpace;
+        let mut peg_collider = compound_collider(&pair.peg, friction).density(0.0);
+        if joint_space_contacts {
+            // The narrow phase still finds the peg's contacts; rapier's solver leaves them alone.
+            peg_collider = peg_collider.solver_groups(InteractionGroups::none());
+        }
         let arm = Arm::insert(
             &mut world,
             &model,
@@ -337,6 +363,9 @@ impl Cell {
             saturated_at_s: vec![f64::NEG_INFINITY; n],
             energy,
             position_projection: params.physics.position_projection,
+            joint_space_contacts,
+            peg_contacts: None,
+            friction,
         };
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.
         let k = cell.model.kinematics(&q0);
@@ -372,6 +401,9 @@ impl Cell {
         let q_before = self.arm.q(&self.world);
         self.world.step();
         self.arm.clear_torques(&mut self.world);
+        if self.joint_space_contacts {
+            self.solve_peg_contacts(&q_before);
+        }
         // Torques do not change velocities until the step, so the last step's velocities are
         // the ones before this one.
         let qd = self.arm.qd(&self.world);
@@ -387,6 +419,45 @@ impl Cell {
         if self.position_projection {
             self.project_out_penetration();
         }
+    }
+
+    /// Solves the peg's contacts found at the start of the step (at `q_before`) against the
+    /// velocity rapier's step left, and applies the result as semi-implicit Euler does: the
+    /// velocity change, and the joints moved by the step times it ([`joint_contacts`]).
+    fn solve_peg_contacts(&mut self, q_before: &[f64]) {
+        self.peg_contacts = None;
+        let contacts = joint_contacts::peg_contacts(&self.world, self.peg);
+        if contacts.is_empty() {
+            return;
+        }
+        let k = self.model.kinematics(q_before);
+        let mass = self.model.mass_matrix(&k);
+        let v_free = DVector::from_vec(self.arm.qd(&self.world));
+        let about = Point3::from(self.model.tcp_from(&k).translation.vector);
+        let Some(solve) = joint_contacts::solve(
+            &self.model,
+            &k,
+            &self.arm.world_t_base,
+            &mass,
+            &v_free,
+            &contacts,
+            self.friction,
+            self.dt_s,
+            &about,
+        ) else {
+            return;
+        };
+        // Semi-implicit Euler, as the solve assumed: q = q_before + dt v_new. rapier's two
+        // substeps put the free motion's end elsewhere by a dt^2 / 4 (measured: half a
+        // micrometre at a wedged peg, which then never left the wall).
+        let v_new = &v_free + &solve.dv;
+        let q_now = self.arm.q(&self.world);
+        let dq: Vec<f64> = (q_before.iter().zip(&q_now).zip(v_new.iter()))
+            .map(|((q0, q), v)| q0 + self.dt_s * v - q)
+            .collect();
+        self.arm.displace(&mut self.world, &dq);
+        self.arm.set_qd(&mut self.world, v_new.as_slice());
+        self.peg_contacts = Some(solve);
     }
 
     /// Moves the arm out of what its peg still overlaps after the step
@@ -436,7 +507,8 @@ impl Cell {
                 .arm
                 .mechanical_energy(&self.world, &self.model.armature, qd),
             drives_j: torque_work + self.disturbance_power() * dt,
-            contacts_j: self.arm.contact_power(&self.world) * dt,
+            contacts_j: self.arm.contact_power(&self.world) * dt
+                + self.peg_contacts.as_ref().map_or(0.0, |c| c.work_j),
             damping_j: damping_work,
         }
     }

@@ -201,6 +201,26 @@ impl Arm {
         }
     }
 
+    /// Sets the joint velocities (rad/s, or m/s on prismatic joints), and the links' bodies'
+    /// velocities with them (through rapier's body Jacobians, at the links' current poses).
+    pub fn set_qd(&self, world: &mut PhysicsWorld, qd: &[f64]) {
+        let (mb, _) = world
+            .multibody_joints
+            .get_mut(self.joints[0])
+            .expect("arm joints exist");
+        let mut v = mb.generalized_velocity_mut();
+        for (slot, &x) in v.iter_mut().zip(qd) {
+            *slot = x as f32;
+        }
+        let v = mb.generalized_velocity().clone_owned();
+        for link in mb.links().skip(1) {
+            let twist = mb.body_jacobian(link.link_id()) * &v;
+            let rb = &mut world.bodies[link.rigid_body_handle()];
+            rb.set_linvel(Vector::new(twist[0], twist[1], twist[2]), false);
+            rb.set_angvel(Vector::new(twist[3], twist[4], twist[5]), false);
+        }
+    }
+
     /// Body of the last link (the one carrying the flange and the tool).
     pub fn last_body(&self) -> RigidBodyHandle {
         *self.bodies.last().expect("at least one link")

@@ -12,6 +12,7 @@
 pub mod arm;
 pub mod compound;
 pub mod dispatcher;
+pub mod joint_contacts;
 pub mod penetration;
 pub mod projection;
 pub mod sat;
@@ -52,6 +53,27 @@ pub struct PhysicsParams {
     /// to 1/8 (docs/physics.md, "Position projection"); the arm cell only.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub position_projection: bool,
+    /// Who solves the arm's peg contacts: rapier's multibody contact rows (the default), or an
+    /// exact Newton solve in joint space (`joint_contacts`; experimental, the arm cell only).
+    #[serde(default, skip_serializing_if = "ArmContacts::is_rapier")]
+    pub arm_contacts: ArmContacts,
+}
+
+/// The solver of the arm's peg contacts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ArmContacts {
+    /// rapier's projected Gauss-Seidel over multibody contact rows, soft at 240 Hz.
+    #[default]
+    Rapier,
+    /// Newton's method on the joint-space contact problem (`joint_contacts`).
+    JointSpace,
+}
+
+impl ArmContacts {
+    fn is_rapier(&self) -> bool {
+        *self == ArmContacts::Rapier
+    }
 }
 
 impl Default for PhysicsParams {
@@ -64,6 +86,7 @@ impl Default for PhysicsParams {
             contact_frequency_hz: 240.0,
             friction: 0.3,
             position_projection: false,
+            arm_contacts: ArmContacts::Rapier,
         }
     }
 }

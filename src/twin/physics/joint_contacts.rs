@@ -1,0 +1,512 @@
+//! The arm's peg contacts solved in joint space, exactly, instead of by rapier's projected
+//! Gauss-Seidel over multibody contact rows. Experimental, opt-in (`PhysicsParams::arm_contacts`).
+//!
+//! Why: the arm has a handful of degrees of freedom while its peg, wedged in a tight bore, has
+//! hundreds of contact rows (about 1 300 contact points per step on the gear at 0.1 mm). rapier
+//! relaxes those rows one by one through the arm's dense inertia; on a wedge that converges
+//! slowly, so its contacts stay soft (a 240 Hz spring, 12-95 um of penetration under the motion
+//! cases of `validate --arm`) and stiffer ones go unstable (docs/physics.md, "The arm at 0.1 mm").
+//! Here every row acts on the same few joint velocities, so the whole contact problem is a
+//! convex program in `n` unknowns (`n` = the arm's joints), solved to its optimum by Newton's
+//! method, as MuJoCo's primal solver does (E. Todorov, "Convex and analytically-invertible
+//! dynamics with contacts and constraints", ICRA 2014):
+//!
+//! `min_v  1/2 (v - v_free)^T M (v - v_free) + sum_c 1/2 D_c min(0, J_c v - u_c)^2
+//!          + sum_c H(D_f, b_c; T_c v)`
+//!
+//! - `v_free` is the joints' velocity after rapier's step without these contacts (torques,
+//!   gravity, damping, gyroscopic terms: rapier's own integration), `M` the joint-space inertia
+//!   with the rotor inertia, both at the start of the step, where the contacts were found.
+//! - `J_c` is the normal row of contact point `c` (its normal times the point's Jacobian) and
+//!   `u_c` the speed it must reach: a point `d > 0` away may approach by `d / dt` in the step
+//!   (speculative contact, no tunnelling); a point `d` deep is pushed out by
+//!   [`PUSH_OUT_FRACTION`] of `d` per step (Baumgarte).
+//! - `D_c` makes the constraint soft by a fixed fraction of the row's own effective mass,
+//!   `D = d / (1 - d) / (J M^-1 J^T)` with `d` = [`IMPEDANCE`]: every row is equally stiff
+//!   relative to what it carries, whatever the wrist's small projected inertia.
+//! - Friction is Coulomb's, isotropic: `T_c` holds the point's two tangent rows and `H` is the
+//!   Huber function of the slip speed, `1/2 D_f |x|^2` up to `|x| = b / D_f` and linear beyond,
+//!   so the friction impulse is `-D_f x` while it sticks and `-b x / |x|` while it slides. Its
+//!   bound `b` is `mu` times the normal impulse, refreshed from the solution
+//!   [`FRICTION_ROUNDS`] times (staggered projections: D. M. Kaufman et al., "Staggered
+//!   projections for frictional contact in multibody systems", SIGGRAPH Asia 2008). A friction
+//!   pyramid as rows of their own (MuJoCo's pyramidal cone in this primal form) was tried first:
+//!   it makes a sliding point dilate (`n . v >= mu |slip|`), which a peg between two walls
+//!   0.05 mm apart cannot do, so it squeezed the peg with hundreds of newtons.
+//! - The impulses are `p_c = D_c max(0, u_c - J_c v)` and the friction's; the arm's velocity
+//!   changes by `M^-1 J^T p` and, as semi-implicit Euler integrates positions with the new
+//!   velocity, its joints move by `dt` times that change.
+//!
+//! The cost is convex and piecewise smooth: Newton's method with a safeguarded line search.
+
+use crate::twin::robot::{Iso, Kinematics, RobotModel};
+use nalgebra::{DMatrix, DVector, Point3, Vector3};
+use rapier3d::prelude::*;
+
+/// Impedance of a contact row, MuJoCo's `d` in (0, 1): the constraint's weight is `d / (1 - d)`
+/// times the row's effective mass. 0.9999 halves the motion cases' penetration and multiplies
+/// their peak forces up to tenfold (2.5 kN on the cross's sampling episode).
+pub const IMPEDANCE: f64 = 0.999;
+/// Fraction of a penetration pushed out per step (Baumgarte's factor). Measured on `validate
+/// --arm` at 0.1 mm: 0.2 left 4-14 um in the motion cases of the plug3 and the key, 0.4 keeps
+/// every built-in under 5 um at every clearance, 0.05 fails the cross; 0.5 and 1.0 also pass
+/// the cross (docs/physics.md).
+pub const PUSH_OUT_FRACTION: f64 = 0.4;
+/// Newton iterations at most per solve, and the joint-speed change (rad/s) below which a step
+/// ends the solve.
+const MAX_NEWTON_STEPS: usize = 30;
+const NEWTON_TOLERANCE: f64 = 1e-10;
+/// Friction bounds refreshed from the normal impulses this many times (staggered projections).
+const FRICTION_ROUNDS: usize = 3;
+/// Iterations at most of the line search, and the slope (relative to the slope at its start) at
+/// which it stops.
+const MAX_LINE_STEPS: usize = 30;
+const LINE_TOLERANCE: f64 = 1e-3;
+
+/// One contact point of the peg, world frame.
+#[derive(Clone, Copy, Debug)]
+pub struct PegContact {
+    /// The contact point on the peg.
+    pub point: Point3<f64>,
+    /// Unit normal pushing the peg out of the other body.
+    pub normal: Vector3<f64>,
+    /// Signed distance along the normal, metres (negative: overlapping).
+    pub dist_m: f64,
+}
+
+/// The contact points on `peg` that the narrow phase found at the start of the last step (every
+/// manifold of every pair with the peg, the fixture's and the table's).
+pub fn peg_contacts(world: &PhysicsWorld, peg: ColliderHandle) -> Vec<PegContact> {
+    let mut out = Vec::new();
+    for pair in world.narrow_phase.contact_pairs_with(peg) {
+        let Some(rigid) = pair.rigid() else {
+            continue;
+        };
+        let peg_is_1 = pair.collider1 == peg;
+        let (c1, c2) = (
+            &world.colliders[pair.collider1],
+            &world.colliders[pair.collider2],
+        );
+        for m in &rigid.manifolds {
+            let pos1 = *c1.position() * m.subshape_pos1().copied().unwrap_or(Pose::IDENTITY);
+            let pos2 = *c2.position() * m.subshape_pos2().copied().unwrap_or(Pose::IDENTITY);
+            let n1 = super::v64(pos1.rotation * m.local_n1);
+            for p in &m.points {
+                let (point, normal) = if peg_is_1 {
+                    (pos1 * p.local_p1, -n1)
+                } else {
+                    (pos2 * p.local_p2, n1)
+                };
+                out.push(PegContact {
+                    point: Point3::from(super::v64(point)),
+                    normal,
+                    dist_m: p.dist as f64,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// What the contact solve did in one step.
+#[derive(Clone, Debug)]
+pub struct ContactSolve {
+    /// The joints' velocity change, rad/s (m/s on prismatic joints).
+    pub dv: DVector<f64>,
+    /// Mean contact force on the peg over the step, N, base frame.
+    pub force: Vector3<f64>,
+    /// Its torque about `about`, N m, base frame.
+    pub torque: Vector3<f64>,
+    /// Work of the contact impulses at the velocities they left, J.
+    pub work_j: f64,
+    /// Contact points taken.
+    pub points: usize,
+    /// Newton steps taken.
+    pub newton_steps: usize,
+}
+
+/// Per contact point: its normal row and two tangent rows (`n` columns each, stored flat), the
+/// normal row's target speed (m/s) and weight (kg), the friction's weight (kg) and bound (N s).
+struct Rows {
+    n: usize,
+    jac: Vec<f64>,
+    target: Vec<f64>,
+    normal_weight: Vec<f64>,
+    friction_weight: Vec<f64>,
+    bound: Vec<f64>,
+    /// Normal and tangents (base frame) and the point on the peg, per point.
+    frame: Vec<[Vector3<f64>; 3]>,
+    point: Vec<Point3<f64>>,
+}
+
+impl Rows {
+    fn len(&self) -> usize {
+        self.target.len()
+    }
+
+    fn row(&self, r: usize) -> &[f64] {
+        &self.jac[r * self.n..(r + 1) * self.n]
+    }
+
+    /// The speeds of every point's three rows at joint velocity `v`.
+    fn speeds(&self, v: &DVector<f64>) -> Vec<[f64; 3]> {
+        (0..self.len())
+            .map(|c| {
+                std::array::from_fn(|k| {
+                    self.row(3 * c + k)
+                        .iter()
+                        .zip(v.iter())
+                        .map(|(a, b)| a * b)
+                        .sum()
+                })
+            })
+            .collect()
+    }
+
+    /// The impulses (normal, tangent 1, tangent 2; N s) of point `c` at row speeds `s`.
+    fn impulses(&self, c: usize, s: &[f64; 3]) -> [f64; 3] {
+        let normal = self.normal_weight[c] * (self.target[c] - s[0]).max(0.0);
+        let (w, b) = (self.friction_weight[c], self.bound[c]);
+        let slip = (s[1] * s[1] + s[2] * s[2]).sqrt();
+        let scale = if w * slip <= b { -w } else { -b / slip };
+        [normal, scale * s[1], scale * s[2]]
+    }
+}
+
+/// Solves the contacts `contacts` (world frame) of the peg carried by `model`'s last link at the
+/// configuration `k` (`world_t_base` places the arm), against the free velocity `v_free`, with
+/// the joint-space inertia `mass`, Coulomb friction `friction`, over a step of `dt` seconds;
+/// forces and torques are reported in the base frame, torques about `about` (base frame).
+#[allow(clippy::too_many_arguments)]
+pub fn solve(
+    model: &RobotModel,
+    k: &Kinematics,
+    world_t_base: &Iso,
+    mass: &DMatrix<f64>,
+    v_free: &DVector<f64>,
+    contacts: &[PegContact],
+    friction: f64,
+    dt: f64,
+    about: &Point3<f64>,
+) -> Option<ContactSolve> {
+    let mass_inverse = mass.clone().cholesky()?.inverse();
+    let mut rows = build_rows(model, k, world_t_base, &mass_inverse, contacts, dt);
+    let mut v = v_free.clone();
+    let mut speeds = rows.speeds(&v);
+    let mut newton_steps = 0;
+    for _ in 0..FRICTION_ROUNDS {
+        newton_steps += minimise(mass, v_free, &rows, &mut v, &mut speeds);
+        for (c, s) in speeds.iter().enumerate() {
+            rows.bound[c] = friction * rows.impulses(c, s)[0];
+        }
+    }
+    let mut out = ContactSolve {
+        dv: &v - v_free,
+        force: Vector3::zeros(),
+        torque: Vector3::zeros(),
+        work_j: 0.0,
+        points: contacts.len(),
+        newton_steps,
+    };
+    for (c, s) in speeds.iter().enumerate() {
+        let p = rows.impulses(c, s);
+        let [n, t1, t2] = rows.frame[c];
+        let f = (n * p[0] + t1 * p[1] + t2 * p[2]) / dt;
+        out.force += f;
+        out.torque += (rows.point[c] - about).cross(&f);
+        out.work_j += p[0] * s[0] + p[1] * s[1] + p[2] * s[2];
+    }
+    Some(out)
+}
+
+/// The rows of every contact point: its normal and two tangents.
+fn build_rows(
+    model: &RobotModel,
+    k: &Kinematics,
+    world_t_base: &Iso,
+    mass_inverse: &DMatrix<f64>,
+    contacts: &[PegContact],
+    dt: f64,
+) -> Rows {
+    let n = model.dof();
+    let last = n - 1;
+    let base_t_world = world_t_base.inverse();
+    // One Jacobian at the last link's origin `o`; a point `p` on the link moves at
+    // `v_o + w x (p - o)`, so the row of direction `d` there is `d^T J_v + ((p - o) x d)^T J_w`.
+    let origin = Point3::from(k.frames[last].translation.vector);
+    let jac = model.point_jacobian(k, &origin, last);
+    let (jv, jw) = (jac.fixed_rows::<3>(0), jac.fixed_rows::<3>(3));
+    let ratio = IMPEDANCE / (1.0 - IMPEDANCE);
+    let m = contacts.len();
+    let mut rows = Rows {
+        n,
+        jac: Vec::with_capacity(3 * n * m),
+        target: Vec::with_capacity(m),
+        normal_weight: Vec::with_capacity(m),
+        friction_weight: Vec::with_capacity(m),
+        bound: vec![0.0; m],
+        frame: Vec::with_capacity(m),
+        point: Vec::with_capacity(m),
+    };
+    for c in contacts {
+        let point = base_t_world * c.point;
+        let normal = base_t_world.rotation * c.normal;
+        let lever = point - origin;
+        rows.target.push(if c.dist_m >= 0.0 {
+            -c.dist_m / dt
+        } else {
+            -PUSH_OUT_FRACTION * c.dist_m / dt
+        });
+        let t1 = normal.cross(&least_aligned_axis(&normal)).normalize();
+        let t2 = normal.cross(&t1);
+        let mut inverse_mass = [0.0; 3];
+        for (slot, d) in inverse_mass.iter_mut().zip([normal, t1, t2]) {
+            let r = jv.tr_mul(&d) + jw.tr_mul(&lever.cross(&d));
+            *slot = r.dot(&(mass_inverse * &r)).max(f64::MIN_POSITIVE);
+            rows.jac.extend(r.iter());
+        }
+        rows.normal_weight.push(ratio / inverse_mass[0]);
+        rows.friction_weight
+            .push(ratio / (0.5 * (inverse_mass[1] + inverse_mass[2])));
+        rows.frame.push([normal, t1, t2]);
+        rows.point.push(point);
+    }
+    rows
+}
+
+/// The coordinate axis least aligned with `n` (a tangent seed).
+fn least_aligned_axis(n: &Vector3<f64>) -> Vector3<f64> {
+    let a = n.abs();
+    if a.x <= a.y && a.x <= a.z {
+        Vector3::x()
+    } else if a.y <= a.z {
+        Vector3::y()
+    } else {
+        Vector3::z()
+    }
+}
+
+/// Newton's method on the convex cost of the module doc, from `v` whose rows' speeds are
+/// `speeds` (both kept up to date); returns the steps taken.
+fn minimise(
+    mass: &DMatrix<f64>,
+    v_free: &DVector<f64>,
+    rows: &Rows,
+    v: &mut DVector<f64>,
+    speeds: &mut [[f64; 3]],
+) -> usize {
+    for step in 1..=MAX_NEWTON_STEPS {
+        let (grad, hess) = newton_system(mass, v_free, rows, v, speeds);
+        let Some(h) = hess.cholesky() else {
+            return step;
+        };
+        let delta = -h.solve(&grad);
+        let sigma = rows.speeds(&delta);
+        let alpha = line_search(mass, v_free, rows, v, &delta, speeds, &sigma);
+        *v += &delta * alpha;
+        for (s, d) in speeds.iter_mut().zip(&sigma) {
+            for k in 0..3 {
+                s[k] += alpha * d[k];
+            }
+        }
+        if delta.amax() * alpha < NEWTON_TOLERANCE {
+            return step;
+        }
+    }
+    MAX_NEWTON_STEPS
+}
+
+/// The cost's gradient and Hessian at `v` (rows' speeds `speeds`).
+fn newton_system(
+    mass: &DMatrix<f64>,
+    v_free: &DVector<f64>,
+    rows: &Rows,
+    v: &DVector<f64>,
+    speeds: &[[f64; 3]],
+) -> (DVector<f64>, DMatrix<f64>) {
+    let n = v.len();
+    let mut grad = mass * (v - v_free);
+    let mut hess = mass.clone();
+    // Adds row `r`'s impulse `g` to the gradient and `w` times row `r` by row `r2` to the
+    // Hessian's lower triangle, for each `(r2, w)` of `h`.
+    let mut add = |r: usize, g: f64, h: &[(usize, f64)]| {
+        let a = rows.row(r);
+        for i in 0..n {
+            grad[i] -= g * a[i];
+        }
+        for &(r2, w) in h {
+            let b = rows.row(r2);
+            for i in 0..n {
+                for j in 0..=i {
+                    hess[(i, j)] += w * a[i] * b[j];
+                }
+            }
+        }
+    };
+    for (c, s) in speeds.iter().enumerate() {
+        let p = rows.impulses(c, s);
+        if p[0] > 0.0 {
+            add(3 * c, p[0], &[(3 * c, rows.normal_weight[c])]);
+        }
+        let (w, b) = (rows.friction_weight[c], rows.bound[c]);
+        if b <= 0.0 {
+            continue;
+        }
+        let slip = (s[1] * s[1] + s[2] * s[2]).sqrt();
+        if w * slip <= b {
+            add(3 * c + 1, p[1], &[(3 * c + 1, w)]);
+            add(3 * c + 2, p[2], &[(3 * c + 2, w)]);
+        } else {
+            // b |x|: Hessian (b / |x|) (I - x x^T / |x|^2) in the tangent plane.
+            let (u1, u2, k) = (s[1] / slip, s[2] / slip, b / slip);
+            let cross = -k * u1 * u2;
+            add(
+                3 * c + 1,
+                p[1],
+                &[(3 * c + 1, k * (1.0 - u1 * u1)), (3 * c + 2, cross)],
+            );
+            add(
+                3 * c + 2,
+                p[2],
+                &[(3 * c + 2, k * (1.0 - u2 * u2)), (3 * c + 1, cross)],
+            );
+        }
+    }
+    symmetrise_lower(&mut hess);
+    (grad, hess)
+}
+
+/// Copies the lower triangle (where the Hessian is summed) onto the upper.
+fn symmetrise_lower(m: &mut DMatrix<f64>) {
+    for i in 0..m.nrows() {
+        for j in 0..i {
+            m[(j, i)] = m[(i, j)];
+        }
+    }
+}
+
+/// The minimiser along `v + alpha delta` (alpha >= 0): the cost's derivative there increases
+/// with alpha; safeguarded Newton on it within a bracket.
+fn line_search(
+    mass: &DMatrix<f64>,
+    v_free: &DVector<f64>,
+    rows: &Rows,
+    v: &DVector<f64>,
+    delta: &DVector<f64>,
+    s0: &[[f64; 3]],
+    sd: &[[f64; 3]],
+) -> f64 {
+    let m_delta = mass * delta;
+    let (a0, a1) = (m_delta.dot(&(v - v_free)), m_delta.dot(delta));
+    // phi'(alpha) and phi''(alpha).
+    let slope = |alpha: f64| {
+        let (mut d1, mut d2) = (a0 + a1 * alpha, a1);
+        for (c, (s, sigma)) in s0.iter().zip(sd).enumerate() {
+            let at: [f64; 3] = std::array::from_fn(|k| s[k] + alpha * sigma[k]);
+            let p = rows.impulses(c, &at);
+            d1 -= p[0] * sigma[0] + p[1] * sigma[1] + p[2] * sigma[2];
+            if p[0] > 0.0 {
+                d2 += rows.normal_weight[c] * sigma[0] * sigma[0];
+            }
+            let (w, b) = (rows.friction_weight[c], rows.bound[c]);
+            let slip = (at[1] * at[1] + at[2] * at[2]).sqrt();
+            if b > 0.0 {
+                let t2 = sigma[1] * sigma[1] + sigma[2] * sigma[2];
+                if w * slip <= b {
+                    d2 += w * t2;
+                } else {
+                    let along = (at[1] * sigma[1] + at[2] * sigma[2]) / slip;
+                    d2 += b / slip * (t2 - along * along);
+                }
+            }
+        }
+        (d1, d2)
+    };
+    let (d0, _) = slope(0.0);
+    if d0 >= 0.0 {
+        return 0.0;
+    }
+    // Newton's step (alpha = 1) is the minimiser while no row changes state, so start there;
+    // bisection keeps the iterate inside the bracket [lo, hi] where the slope changes sign.
+    let (mut lo, mut hi) = (0.0, f64::INFINITY);
+    let mut alpha = 1.0;
+    for _ in 0..MAX_LINE_STEPS {
+        let (d1, d2) = slope(alpha);
+        if d1.abs() <= LINE_TOLERANCE * d0.abs() {
+            break;
+        }
+        if d1 < 0.0 {
+            lo = alpha;
+        } else {
+            hi = alpha;
+        }
+        let newton = alpha - d1 / d2;
+        alpha = if d2 > 0.0 && newton > lo && newton < hi {
+            newton
+        } else if hi.is_finite() {
+            0.5 * (lo + hi)
+        } else {
+            2.0 * alpha
+        };
+    }
+    alpha
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two unit-mass joints, one contact point whose normal row is joint 0 and whose tangents
+    /// are joint 1 and nothing, with the given weights and friction bound.
+    fn one_point(target: f64, weight: f64, friction_weight: f64, bound: f64) -> Rows {
+        Rows {
+            n: 2,
+            jac: vec![1.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+            target: vec![target],
+            normal_weight: vec![weight],
+            friction_weight: vec![friction_weight],
+            bound: vec![bound],
+            frame: vec![[Vector3::x(), Vector3::y(), Vector3::z()]],
+            point: vec![Point3::origin()],
+        }
+    }
+
+    #[test]
+    fn a_normal_row_stops_the_approach_up_to_its_softness() {
+        let mass = DMatrix::identity(2, 2);
+        let v_free = DVector::from_vec(vec![-1.0, 0.5]);
+        let rows = one_point(0.0, 999.0, 999.0, 0.0);
+        let mut v = v_free.clone();
+        minimise(&mass, &v_free, &rows, &mut v, &mut rows.speeds(&v_free));
+        // (v0 + 1) + 999 v0 = 0, and the frictionless tangent keeps its speed.
+        assert!((v[0] + 1.0 / 1000.0).abs() < 1e-12, "{v}");
+        assert!((v[1] - 0.5).abs() < 1e-12, "{v}");
+    }
+
+    #[test]
+    fn friction_holds_a_slow_slip_and_is_bounded_on_a_fast_one() {
+        let mass = DMatrix::identity(2, 2);
+        let rows = one_point(0.0, 999.0, 999.0, 0.2);
+        for (slip, expected) in [(0.1, 0.1 / 1000.0), (1.0, 0.8)] {
+            let v_free = DVector::from_vec(vec![0.0, slip]);
+            let mut v = v_free.clone();
+            minimise(&mass, &v_free, &rows, &mut v, &mut rows.speeds(&v_free));
+            assert!((v[1] - expected).abs() < 1e-9, "slip {slip}: {v}");
+            let p = rows.impulses(0, &rows.speeds(&v)[0]);
+            assert!(p[1].abs() <= 0.2 + 1e-12, "slip {slip}: {p:?}");
+        }
+    }
+
+    #[test]
+    fn a_separating_point_takes_no_impulse() {
+        let mass = DMatrix::identity(2, 2);
+        let v_free = DVector::from_vec(vec![0.3, 0.0]);
+        let rows = one_point(-0.01, 999.0, 999.0, 0.0);
+        let mut v = v_free.clone();
+        assert_eq!(
+            minimise(&mass, &v_free, &rows, &mut v, &mut rows.speeds(&v_free)),
+            1
+        );
+        assert_eq!(v, v_free);
+    }
+}
