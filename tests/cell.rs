@@ -314,3 +314,19 @@ fn joint_space_contacts_carry_the_rim_press_with_an_estimate_within_1_n_and_a_cl
         "the account does not close: {f:?}"
     );
 }
+
+#[test]
+fn the_energy_account_opens_with_the_arms_energy_so_an_early_fault_is_not_booked_to_the_integrator()
+{
+    // The arm at rest in free space: its first 10 ms change its energy by next to nothing. The
+    // account used to open at 0 J (rapier's bodies weigh nothing until its first step) and then
+    // booked the links' 74 J of potential energy to the integrator for the first 100 ms.
+    let pair = cross(0.5e-3);
+    let params = CellParams::default();
+    let start = nominal_hole_pose(&pair, &params) * Iso::translation(0.0, 0.0, 0.05);
+    let mut cell = free_cell(&pair, &params, &start, ImpedanceGains::default()).unwrap();
+    cell.run(0.01);
+    let f = cell.energy_flows();
+    assert!(f.mechanical_gain_j.abs() < 0.01, "{f:?}");
+    assert!(f.integration_j.abs() < 0.01, "{f:?}");
+}

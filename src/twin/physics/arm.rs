@@ -99,8 +99,14 @@ impl Arm {
         arm
     }
 
-    /// Resolves the fixed root, sets damping and rotor inertia, puts the joints at `q0`.
+    /// Resolves the fixed root, sets damping and rotor inertia, puts the joints at `q0`. The
+    /// links' mass properties are computed here rather than at the first step, as rapier would:
+    /// until then its bodies weigh nothing, and the arm's energy at the start (the energy
+    /// account's opening entry) read 0 J instead of the links' 74 J of potential energy.
     fn set_up_multibody(&self, world: &mut PhysicsWorld, model: &RobotModel, q0: &[f64]) {
+        for &b in &self.bodies {
+            world.bodies[b].recompute_mass_properties_from_colliders(&world.colliders);
+        }
         let (mb, _) = world
             .multibody_joints
             .get_mut(self.joints[0])
