@@ -80,6 +80,14 @@ fn press_down(pair: &PartPair, start: Iso, travel_m: f64, params: &CellParams) -
     (cell, worst)
 }
 
+/// The cross at 0.1 mm lowered 1 mm off its axis, so that its arms land on the rim and are
+/// pressed 10 mm further down (`press_down`).
+fn press_on_rim(pair: &PartPair, params: &CellParams) -> (Cell, f64) {
+    let hole = nominal_hole_pose(pair, params);
+    let start = tcp_in_hole(&hole, -0.001) * Iso::translation(0.001, 0.0, 0.0);
+    press_down(pair, start, 0.01, params)
+}
+
 fn depth_m(cell: &Cell) -> f64 {
     -(cell.truth().base_t_hole().unwrap().inverse() * cell.truth().tcp_pose())
         .translation
@@ -117,10 +125,7 @@ fn aligned_cross_goes_from_2_mm_to_full_depth_at_0_1_mm_and_the_press_is_estimat
 fn misaligned_cross_stalls_on_the_mouth() {
     let pair = cross(0.1e-3);
     let params = CellParams::default();
-    let hole = nominal_hole_pose(&pair, &params);
-    // 1 mm off: the arms of the cross land on the rim.
-    let start = tcp_in_hole(&hole, -0.001) * Iso::translation(0.001, 0.0, 0.0);
-    let (cell, worst) = press_down(&pair, start, 0.01, &params);
+    let (cell, worst) = press_on_rim(&pair, &params);
     assert!(depth_m(&cell) < 0.1e-3, "depth {}", depth_m(&cell));
     assert!(worst <= 5e-6, "penetration {worst} m");
     let f = cell.truth().contact_wrench();
@@ -131,9 +136,7 @@ fn misaligned_cross_stalls_on_the_mouth() {
 fn contacts_take_energy_out_of_the_arm_and_the_account_closes_while_pressing_the_rim() {
     let pair = cross(0.1e-3);
     let params = CellParams::default();
-    let hole = nominal_hole_pose(&pair, &params);
-    let start = tcp_in_hole(&hole, -0.001) * Iso::translation(0.001, 0.0, 0.0);
-    let (cell, _) = press_down(&pair, start, 0.01, &params);
+    let (cell, _) = press_on_rim(&pair, &params);
     let f = cell.energy_flows();
     assert!(cell.truth().contact_wrench().z > 10.0, "pressing the rim");
     assert!(f.contacts_j <= 1e-3, "contacts put energy in: {f:?}");
@@ -293,9 +296,7 @@ fn joint_space_contacts_carry_the_rim_press_with_an_estimate_within_1_n_and_a_cl
     let pair = cross(0.1e-3);
     let mut params = CellParams::default();
     params.physics.arm_contacts = ArmContacts::JointSpace;
-    let hole = nominal_hole_pose(&pair, &params);
-    let start = tcp_in_hole(&hole, -0.001) * Iso::translation(0.001, 0.0, 0.0);
-    let (cell, worst) = press_down(&pair, start, 0.01, &params);
+    let (cell, worst) = press_on_rim(&pair, &params);
     assert!(depth_m(&cell) < 0.1e-3, "depth {}", depth_m(&cell));
     assert!(worst <= 1e-6, "penetration {worst} m");
     let truth = cell.truth().contact_wrench();

@@ -3,7 +3,7 @@
 
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::SamplerConfig;
-use pegtwin::method::validate_arm::validate_arm;
+use pegtwin::method::validate_arm::{ArmValidationReport, validate_arm};
 use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::geometry::{build_builtin, builtin_by_name};
 use pegtwin::twin::physics::ArmContacts;
@@ -46,16 +46,13 @@ fn the_cross_at_1_mm_passes_every_arm_case() {
     );
 }
 
-#[test]
-fn with_position_projection_the_cross_at_0_1_mm_passes_every_arm_case_within_5_um() {
-    // Without it the probing and sampling cases keep 15 and 39 um (docs/physics.md).
+/// `validate --arm` on the cross at 0.1 mm with `params`, every case passed within 5 um.
+fn cross_at_0_1_mm_within_5_um(params: &CellParams) -> ArmValidationReport {
     let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.1e-3).unwrap();
-    let mut params = CellParams::default();
-    params.physics.position_projection = true;
     let report = validate_arm(
         &pair,
         &iiwa14().unwrap(),
-        &params,
+        params,
         &TrialConfig::default(),
         &SamplerConfig::default(),
     )
@@ -64,31 +61,28 @@ fn with_position_projection_the_cross_at_0_1_mm_passes_every_arm_case_within_5_u
         assert!(c.passed, "{}: {} ({:?})", c.name, c.observed, c.fault);
         assert!(c.max_penetration_mm <= 0.005, "{c:?}");
     }
-    assert!(report.passed && report.physics.position_projection);
+    assert!(report.passed);
+    report
+}
+
+#[test]
+fn with_position_projection_the_cross_at_0_1_mm_passes_every_arm_case_within_5_um() {
+    // Without it the probing and sampling cases keep 15 and 39 um (docs/physics.md).
+    let mut params = CellParams::default();
+    params.physics.position_projection = true;
+    let report = cross_at_0_1_mm_within_5_um(&params);
+    assert!(report.physics.position_projection);
 }
 
 #[test]
 fn with_joint_space_contacts_the_cross_at_0_1_mm_passes_every_arm_case_within_5_um() {
     // With rapier's contacts the probing and sampling cases keep 15 and 39 um
     // (docs/physics.md, "Joint-space contacts").
-    let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.1e-3).unwrap();
     let mut params = CellParams::default();
     params.physics.arm_contacts = ArmContacts::JointSpace;
-    let report = validate_arm(
-        &pair,
-        &iiwa14().unwrap(),
-        &params,
-        &TrialConfig::default(),
-        &SamplerConfig::default(),
-    )
-    .unwrap();
-    for c in &report.cases {
-        assert!(c.passed, "{}: {} ({:?})", c.name, c.observed, c.fault);
-        assert!(c.max_penetration_mm <= 0.005, "{c:?}");
-    }
+    let report = cross_at_0_1_mm_within_5_um(&params);
     for c in &report.cases[..6] {
         assert!(c.max_penetration_mm <= 0.001, "{c:?}");
     }
-    assert!(report.passed);
     assert_eq!(report.physics.arm_contacts, ArmContacts::JointSpace);
 }

@@ -121,8 +121,6 @@ pub struct ContactSolve {
     pub work_j: f64,
     /// Contact points taken.
     pub points: usize,
-    /// Newton steps taken.
-    pub newton_steps: usize,
 }
 
 /// Per contact point: its normal row and two tangent rows (`n` columns each, stored flat), the
@@ -171,6 +169,22 @@ impl Rows {
         let scale = if w * slip <= b { -w } else { -b / slip };
         [normal, scale * s[1], scale * s[2]]
     }
+
+    /// The friction term's curvature in point `c`'s tangent plane at row speeds `s`, as
+    /// `[h11, h12, h22]` (kg): `D_f I` while it sticks, `(b / |x|) (I - x x^T / |x|^2)` while it
+    /// slides (the Huber function's Hessian); `None` without friction (bound 0).
+    fn friction_curvature(&self, c: usize, s: &[f64; 3]) -> Option<[f64; 3]> {
+        let (w, b) = (self.friction_weight[c], self.bound[c]);
+        if b <= 0.0 {
+            return None;
+        }
+        let slip = (s[1] * s[1] + s[2] * s[2]).sqrt();
+        if w * slip <= b {
+            return Some([w, 0.0, w]);
+        }
+        let (u1, u2, k) = (s[1] / slip, s[2] / slip, b / slip);
+        Some([k * (1.0 - u1 * u1), -k * u1 * u2, k * (1.0 - u2 * u2)])
+    }
 }
 
 /// Solves the contacts `contacts` (world frame) of the peg carried by `model`'s last link at the
@@ -193,9 +207,8 @@ pub fn solve(
     let mut rows = build_rows(model, k, world_t_base, &mass_inverse, contacts, dt);
     let mut v = v_free.clone();
     let mut speeds = rows.speeds(&v);
-    let mut newton_steps = 0;
     for _ in 0..FRICTION_ROUNDS {
-        newton_steps += minimise(mass, v_free, &rows, &mut v, &mut speeds);
+        minimise(mass, v_free, &rows, &mut v, &mut speeds);
         for (c, s) in speeds.iter().enumerate() {
             rows.bound[c] = friction * rows.impulses(c, s)[0];
         }
@@ -206,7 +219,6 @@ pub fn solve(
         torque: Vector3::zeros(),
         work_j: 0.0,
         points: contacts.len(),
-        newton_steps,
     };
     for (c, s) in speeds.iter().enumerate() {
         let p = rows.impulses(c, s);
@@ -334,7 +346,7 @@ fn newton_system(
         for i in 0..n {
             grad[i] -= g * a[i];
         }
-        for &(r2, w) in h {
+        for &(r2, w) in h.iter().filter(|(_, w)| *w != 0.0) {
             let b = rows.row(r2);
             for i in 0..n {
                 for j in 0..=i {
@@ -348,28 +360,10 @@ fn newton_system(
         if p[0] > 0.0 {
             add(3 * c, p[0], &[(3 * c, rows.normal_weight[c])]);
         }
-        let (w, b) = (rows.friction_weight[c], rows.bound[c]);
-        if b <= 0.0 {
-            continue;
-        }
-        let slip = (s[1] * s[1] + s[2] * s[2]).sqrt();
-        if w * slip <= b {
-            add(3 * c + 1, p[1], &[(3 * c + 1, w)]);
-            add(3 * c + 2, p[2], &[(3 * c + 2, w)]);
-        } else {
-            // b |x|: Hessian (b / |x|) (I - x x^T / |x|^2) in the tangent plane.
-            let (u1, u2, k) = (s[1] / slip, s[2] / slip, b / slip);
-            let cross = -k * u1 * u2;
-            add(
-                3 * c + 1,
-                p[1],
-                &[(3 * c + 1, k * (1.0 - u1 * u1)), (3 * c + 2, cross)],
-            );
-            add(
-                3 * c + 2,
-                p[2],
-                &[(3 * c + 2, k * (1.0 - u2 * u2)), (3 * c + 1, cross)],
-            );
+        let (t1, t2) = (3 * c + 1, 3 * c + 2);
+        if let Some([h11, h12, h22]) = rows.friction_curvature(c, s) {
+            add(t1, p[1], &[(t1, h11), (t2, h12)]);
+            add(t2, p[2], &[(t2, h22), (t1, h12)]);
         }
     }
     symmetrise_lower(&mut hess);
@@ -408,16 +402,10 @@ fn line_search(
             if p[0] > 0.0 {
                 d2 += rows.normal_weight[c] * sigma[0] * sigma[0];
             }
-            let (w, b) = (rows.friction_weight[c], rows.bound[c]);
-            let slip = (at[1] * at[1] + at[2] * at[2]).sqrt();
-            if b > 0.0 {
-                let t2 = sigma[1] * sigma[1] + sigma[2] * sigma[2];
-                if w * slip <= b {
-                    d2 += w * t2;
-                } else {
-                    let along = (at[1] * sigma[1] + at[2] * sigma[2]) / slip;
-                    d2 += b / slip * (t2 - along * along);
-                }
+            if let Some([h11, h12, h22]) = rows.friction_curvature(c, &at) {
+                d2 += h11 * sigma[1] * sigma[1]
+                    + 2.0 * h12 * sigma[1] * sigma[2]
+                    + h22 * sigma[2] * sigma[2];
             }
         }
         (d1, d2)
