@@ -2,8 +2,8 @@
 //! `cross` peg (and the `gear`, the built-in with the most convex pieces) 5 mm inside its hole at
 //! 0.1 mm clearance, probing the walls with a small circle in x, y and a rocking in roll and pitch
 //! (as the observation phase does; the scenes of `pegtwin bench`, `src/campaign/bench.rs`).
-//! Each scene runs with rapier's contacts and with the experimental joint-space contact solve
-//! (`twin::physics::joint_contacts`, names ending `_joint_space`).
+//! Each scene runs with the joint-space contact solve (`twin::physics::joint_contacts`, the
+//! default) and with rapier's contacts (names ending `_rapier`).
 //! Throughput is physics steps (1 ms each) per second on one core.
 
 use criterion::measurement::WallTime;
@@ -20,7 +20,7 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("arm_cell");
     group.sample_size(10);
     group.throughput(Throughput::Elements(STEPS as u64));
-    for contacts in [ArmContacts::Rapier, ArmContacts::JointSpace] {
+    for contacts in [ArmContacts::JointSpace, ArmContacts::Rapier] {
         for geometry in ["cross", "gear"] {
             bench_geometry(&mut group, geometry, contacts);
         }
@@ -30,8 +30,8 @@ fn bench(c: &mut Criterion) {
 
 fn bench_geometry(group: &mut BenchmarkGroup<'_, WallTime>, geometry: &str, contacts: ArmContacts) {
     let suffix = match contacts {
-        ArmContacts::Rapier => "",
-        ArmContacts::JointSpace => "_joint_space",
+        ArmContacts::JointSpace => "",
+        ArmContacts::Rapier => "_rapier",
     };
     group.bench_function(format!("{geometry}_0.1mm_probing_steps{suffix}"), |b| {
         b.iter_batched(

@@ -136,8 +136,8 @@ fn bench_measures_every_piece_and_refuses_zero_steps() {
         [
             "arm_cross",
             "arm_gear",
-            "arm_cross_joint_space",
-            "arm_gear_joint_space",
+            "arm_cross_rapier",
+            "arm_gear_rapier",
             "sampling_episode",
             "trial_direct",
             "env_random_policy",

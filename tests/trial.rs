@@ -105,8 +105,10 @@ fn the_same_seed_gives_an_identical_json_result_whatever_the_threads() {
 
 #[test]
 fn a_physics_blow_up_ends_as_a_recorded_sim_fault() {
-    // Contacts softened to 2 Hz let the peg sink through the wall: the fault check catches it.
+    // rapier's contacts softened to 2 Hz let the peg sink through the wall: the fault check
+    // catches it. (The joint-space contacts, the default, have no such setting.)
     let mut params = CellParams::default();
+    params.physics.arm_contacts = pegtwin::twin::physics::ArmContacts::Rapier;
     params.physics.contact_frequency_hz = 2.0;
     let config = TrialConfig {
         method: Method::Direct,

@@ -67,20 +67,20 @@ fn cross_at_0_1_mm_within_5_um(params: &CellParams) -> ArmValidationReport {
 
 #[test]
 fn with_position_projection_the_cross_at_0_1_mm_passes_every_arm_case_within_5_um() {
-    // Without it the probing and sampling cases keep 15 and 39 um (docs/physics.md).
+    // On rapier's contacts; without it their probing and sampling cases keep 15 and 39 um
+    // (docs/physics.md).
     let mut params = CellParams::default();
+    params.physics.arm_contacts = ArmContacts::Rapier;
     params.physics.position_projection = true;
     let report = cross_at_0_1_mm_within_5_um(&params);
     assert!(report.physics.position_projection);
 }
 
 #[test]
-fn with_joint_space_contacts_the_cross_at_0_1_mm_passes_every_arm_case_within_5_um() {
-    // With rapier's contacts the probing and sampling cases keep 15 and 39 um
+fn the_cross_at_0_1_mm_passes_every_arm_case_within_5_um_on_the_joint_space_contacts() {
+    // The default; with rapier's contacts the probing and sampling cases keep 15 and 39 um
     // (docs/physics.md, "Joint-space contacts").
-    let mut params = CellParams::default();
-    params.physics.arm_contacts = ArmContacts::JointSpace;
-    let report = cross_at_0_1_mm_within_5_um(&params);
+    let report = cross_at_0_1_mm_within_5_um(&CellParams::default());
     for c in &report.cases[..6] {
         assert!(c.max_penetration_mm <= 0.001, "{c:?}");
     }

@@ -2,8 +2,9 @@
 //! machine in one run, with the ratio to real time where the piece simulates time.
 //!
 //! - the arm cell (the iiwa 14 under 1 kHz Cartesian impedance, the peg 5 mm in its hole at
-//!   0.1 mm, probing the walls as the observation does) with the cross and with the gear: physics
-//!   steps per second on one core, the scenes of `cargo bench --bench arm`;
+//!   0.1 mm, probing the walls as the observation does) with the cross and with the gear, on the
+//!   joint-space contacts (the default) and on rapier's: physics steps per second on one core,
+//!   the scenes of `cargo bench --bench arm`;
 //! - one 20 s sampling episode of the manifold build (cross at 0.5 mm), one core;
 //! - one trial of the direct baseline (cross at 0.5 mm, 10 s observation), one core;
 //! - 1 000 steps of the Gymnasium environment's core (`method::env`, cross at 0.5 mm, 20 Hz
@@ -136,10 +137,10 @@ fn contacts_per_step(cell: &mut Cell, start: &Iso, steps: usize) -> f64 {
 pub fn run(options: &BenchOptions) -> Result<Vec<BenchRow>> {
     let gear_steps = (options.arm_steps / 10).max(1);
     Ok(vec![
-        arm_row("cross", options.arm_steps, ArmContacts::Rapier)?,
-        arm_row("gear", gear_steps, ArmContacts::Rapier)?,
         arm_row("cross", options.arm_steps, ArmContacts::JointSpace)?,
         arm_row("gear", gear_steps, ArmContacts::JointSpace)?,
+        arm_row("cross", options.arm_steps, ArmContacts::Rapier)?,
+        arm_row("gear", gear_steps, ArmContacts::Rapier)?,
         episode_row()?,
         trial_row()?,
         env_row(options.env_steps)?,
@@ -157,16 +158,16 @@ fn arm_row(geometry: &str, steps: usize, solver: ArmContacts) -> Result<BenchRow
     let contacts = contacts_per_step(&mut cell, &start, steps.min(100));
     Ok(BenchRow {
         name: match solver {
-            ArmContacts::Rapier => format!("arm_{geometry}"),
-            ArmContacts::JointSpace => format!("arm_{geometry}_joint_space"),
+            ArmContacts::JointSpace => format!("arm_{geometry}"),
+            ArmContacts::Rapier => format!("arm_{geometry}_rapier"),
         },
         what: format!(
             "arm cell, iiwa 14 + {geometry} at 0.1 mm ({} + {} convex pieces, {contacts:.0} contact points{}), probing, {steps} steps, one core",
             pair.peg.pieces.len(),
             pair.hole.pieces.len(),
             match solver {
-                ArmContacts::Rapier => "",
-                ArmContacts::JointSpace => ", joint-space contacts",
+                ArmContacts::JointSpace => "",
+                ArmContacts::Rapier => ", rapier's contacts",
             },
         ),
         value: rate,

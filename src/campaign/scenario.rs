@@ -260,7 +260,7 @@ pub struct PhysicsOverride {
     /// Position projection of the arm's peg after every step.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub position_projection: Option<bool>,
-    /// Who solves the arm's peg contacts: `"rapier"` (default) or `"joint_space"` (experimental).
+    /// Who solves the arm's peg contacts: `"joint_space"` (default) or `"rapier"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub arm_contacts: Option<crate::twin::physics::ArmContacts>,
 }
@@ -797,17 +797,17 @@ friction = 0.2
     }
 
     #[test]
-    fn arm_contacts_are_rapiers_unless_physics_names_the_joint_space_solve() {
+    fn arm_contacts_are_the_joint_space_solve_unless_physics_names_rapiers() {
         use crate::twin::physics::ArmContacts;
         let plain = Scenario::parse(TWO_PAIRS).unwrap();
         assert_eq!(
             plain.cell_params().physics.arm_contacts,
-            ArmContacts::Rapier
+            ArmContacts::JointSpace
         );
-        let text = TWO_PAIRS.replace("[physics]\n", "[physics]\narm_contacts = \"joint_space\"\n");
+        let text = TWO_PAIRS.replace("[physics]\n", "[physics]\narm_contacts = \"rapier\"\n");
         let on = Scenario::parse(&text).unwrap();
         let physics = on.cell_params_for(&cell("gear", 0.1)).physics;
-        assert_eq!(physics.arm_contacts, ArmContacts::JointSpace);
+        assert_eq!(physics.arm_contacts, ArmContacts::Rapier);
         let bad = TWO_PAIRS.replace("[physics]\n", "[physics]\narm_contacts = \"newton\"\n");
         let err = Scenario::parse(&bad).unwrap_err().to_string();
         assert!(

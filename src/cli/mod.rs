@@ -177,11 +177,11 @@ pub struct ValidateArgs {
     /// still overlaps (a scenario's `[physics] position_projection = true`).
     #[arg(long, requires = "arm")]
     pub position_projection: bool,
-    /// With --arm: solve the peg's contacts exactly in joint space instead of by rapier's
-    /// multibody contact rows (experimental; a scenario's `[physics] arm_contacts =
-    /// "joint_space"`).
+    /// With --arm: leave the peg's contacts to rapier's multibody contact rows (soft, the
+    /// default until 2026-11-26) instead of the exact joint-space solve; a scenario's
+    /// `[physics] arm_contacts = "rapier"`.
     #[arg(long, requires = "arm")]
-    pub joint_space_contacts: bool,
+    pub rapier_contacts: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,

@@ -15,8 +15,8 @@ pub fn validate_command(args: ValidateArgs) -> Result<i32> {
     let passed = if args.arm {
         let (robot, mut params) = args.pair.robot()?;
         params.physics.position_projection = args.position_projection;
-        if args.joint_space_contacts {
-            params.physics.arm_contacts = ArmContacts::JointSpace;
+        if args.rapier_contacts {
+            params.physics.arm_contacts = ArmContacts::Rapier;
         }
         let report = validate_arm(
             &pair,
@@ -56,18 +56,18 @@ fn verdict(passed: bool) -> &'static str {
 
 fn print_arm_validation(r: &ArmValidationReport) {
     println!(
-        "validate --arm {} at {} mm clearance (penetration limit {:.4} mm; {}, {} Gauss-Seidel passes x {} substeps{})",
+        "validate --arm {} at {} mm clearance (penetration limit {:.4} mm; {}, {} substeps, {} Gauss-Seidel passes, {})",
         r.geometry,
         r.clearance_mm,
         r.penetration_limit_mm,
         r.robot,
-        r.physics.pgs_iterations,
         r.physics.solver_iterations,
+        r.physics.pgs_iterations,
         match (r.physics.position_projection, r.physics.arm_contacts) {
-            (false, ArmContacts::Rapier) => "",
-            (true, ArmContacts::Rapier) => ", position projection",
-            (false, ArmContacts::JointSpace) => ", joint-space contacts",
-            (true, ArmContacts::JointSpace) => ", joint-space contacts, position projection",
+            (false, ArmContacts::JointSpace) => "joint-space contacts",
+            (true, ArmContacts::JointSpace) => "joint-space contacts, position projection",
+            (false, ArmContacts::Rapier) => "rapier's contacts",
+            (true, ArmContacts::Rapier) => "rapier's contacts, position projection",
         }
     );
     for c in &r.cases {

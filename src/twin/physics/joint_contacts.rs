@@ -1,5 +1,6 @@
 //! The arm's peg contacts solved in joint space, exactly, instead of by rapier's projected
-//! Gauss-Seidel over multibody contact rows. Experimental, opt-in (`PhysicsParams::arm_contacts`).
+//! Gauss-Seidel over multibody contact rows: the arm cell's default since 2026-11-26
+//! (`PhysicsParams::arm_contacts`; docs/physics.md, "Joint-space contacts").
 //!
 //! Why: the arm has a handful of degrees of freedom while its peg, wedged in a tight bore, has
 //! hundreds of contact rows (about 1 300 contact points per step on the gear at 0.1 mm). rapier

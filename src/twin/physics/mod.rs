@@ -53,18 +53,19 @@ pub struct PhysicsParams {
     /// to 1/8 (docs/physics.md, "Position projection"); the arm cell only.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub position_projection: bool,
-    /// Who solves the arm's peg contacts: rapier's multibody contact rows (the default), or an
-    /// exact Newton solve in joint space (`joint_contacts`; experimental, the arm cell only).
-    #[serde(default, skip_serializing_if = "ArmContacts::is_rapier")]
+    /// Who solves the arm's peg contacts: an exact Newton solve in joint space
+    /// (`joint_contacts`, the default), or rapier's multibody contact rows (the default until
+    /// 2026-11-26); the arm cell only. Not written when it is rapier's, so that the cache keys
+    /// of manifolds built with rapier's contacts before the switch still find them.
+    #[serde(skip_serializing_if = "ArmContacts::is_rapier")]
     pub arm_contacts: ArmContacts,
 }
 
 /// The solver of the arm's peg contacts.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ArmContacts {
     /// rapier's projected Gauss-Seidel over multibody contact rows, soft at 240 Hz.
-    #[default]
     Rapier,
     /// Newton's method on the joint-space contact problem (`joint_contacts`).
     JointSpace,
@@ -86,7 +87,7 @@ impl Default for PhysicsParams {
             contact_frequency_hz: 240.0,
             friction: 0.3,
             position_projection: false,
-            arm_contacts: ArmContacts::Rapier,
+            arm_contacts: ArmContacts::JointSpace,
         }
     }
 }
