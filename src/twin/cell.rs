@@ -32,9 +32,10 @@ use serde::{Deserialize, Serialize};
 /// when misaligned, the press estimate within 1 N), as measured for the arm (docs/robot.md).
 pub const ARM_SOLVER_ITERATIONS: usize = 2;
 
-/// Projected Gauss-Seidel passes per substep of the arm cell. One pass leaves the contacts of a
-/// peg pinched between opposite walls unconverged (the gear at 0.1 mm: 4 of 8 direct trials
-/// fault with one pass, none with four); four cost a third of the arm's speed
+/// Projected Gauss-Seidel passes per substep of the arm cell, for what rapier's solver still
+/// holds (the peg's contacts only with `arm_contacts = "rapier"`). There, one pass leaves the
+/// contacts of a peg pinched between opposite walls unconverged (the gear at 0.1 mm: 4 of 8
+/// direct trials fault with one pass, none with four); four cost a third of the arm's speed
 /// (docs/physics.md, "The arm at 0.1 mm").
 pub const ARM_PGS_ITERATIONS: usize = 4;
 

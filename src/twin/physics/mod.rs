@@ -32,12 +32,12 @@ pub struct PhysicsParams {
     /// Solver iterations (substeps) per step.
     pub solver_iterations: usize,
     /// Projected Gauss-Seidel passes over the constraints in each substep (rapier's
-    /// `num_internal_pgs_iterations`). One pass leaves the contacts of a peg pinched between
-    /// opposite walls unconverged: the gear at 0.1 mm on the arm then gains energy about its axis
-    /// until joint 7 runs away; four passes converge it in trials at a third of the cost of four
-    /// substeps, but 13 of the 48 episodes of its manifold build still fault there, and eight
-    /// passes leave none (docs/physics.md, "The arm at 0.1 mm"; the sweep scenario gives that
-    /// pair eight through `[[pair_physics]]`). The arm cell uses four
+    /// `num_internal_pgs_iterations`). On rapier's contacts (`arm_contacts = "rapier"`) one pass
+    /// leaves the contacts of a peg pinched between opposite walls unconverged: the gear at
+    /// 0.1 mm on the arm then gains energy about its axis until joint 7 runs away; four passes
+    /// converge it in trials at a third of the cost of four substeps, but 13 of the 48 episodes
+    /// of its manifold build still fault there, and eight passes leave none (docs/physics.md,
+    /// "The arm at 0.1 mm"). The joint-space contacts do not use them. The arm cell uses four
     /// (`twin::cell::ARM_PGS_ITERATIONS`); the free peg of `validate`, with four substeps, one.
     pub pgs_iterations: usize,
     /// rapier's length unit, metres.
