@@ -22,7 +22,7 @@
 //! Everything runs in a fixed order (candidates sorted by piece indices), so results do not
 //! depend on anything but the inputs.
 
-use super::sat::sat_manifold;
+use super::sat::{SatPiece, sat_manifold};
 use rapier3d::parry::bounding_volume::{Aabb, BoundingVolume};
 use rapier3d::parry::math::{Pose, Real, Rotation, Vector};
 use rapier3d::parry::query::details::{TypedWorkspaceData, WorkspaceData};
@@ -123,9 +123,18 @@ struct Workspace<M, C> {
     odometer: Odometer,
     /// Slots whose manifolds are with rapier, in the order handed over.
     lent: Vec<usize>,
-    /// Per leaf of each body, its largest distance from the body's origin (NaN: not yet known).
-    radii1: Vec<Real>,
-    radii2: Vec<Real>,
+    /// Per leaf of each body, what is kept of it once known.
+    leaves1: Vec<Option<Leaf>>,
+    leaves2: Vec<Option<Leaf>>,
+}
+
+/// What is kept of a piece of a compound.
+#[derive(Clone)]
+struct Leaf {
+    /// Its largest distance from the body's origin, metres.
+    radius: Real,
+    /// Its data for the separating-axis test, when it is a convex polyhedron.
+    sat: Option<SatPiece>,
 }
 
 impl<M, C> Default for Workspace<M, C> {
@@ -136,8 +145,8 @@ impl<M, C> Default for Workspace<M, C> {
             last: None,
             odometer: Odometer::default(),
             lent: Vec::new(),
-            radii1: Vec::new(),
-            radii2: Vec::new(),
+            leaves1: Vec::new(),
+            leaves2: Vec::new(),
         }
     }
 }
@@ -200,18 +209,23 @@ pub fn compound_manifolds<M, C>(
         if f64::from(slot.gap - prediction) > bound {
             continue;
         }
-        slot.gap = piece_pair(&pos21, c1, c2, slot, prediction).unwrap_or(0.0);
+        let pieces = (
+            sat_of(&ws.leaves1, slot.leaf1),
+            sat_of(&ws.leaves2, slot.leaf2),
+        );
+        slot.gap = piece_pair(&pos21, (c1, c2), pieces, slot, prediction).unwrap_or(0.0);
         slot.checked = odometer;
     }
     ws.lend(manifolds);
 }
 
-/// Tests one sub-pair (`pos21` places compound 1 in compound 2's frame); `Some(gap)` when its
-/// pieces are proven apart (see [`sat_manifold`]).
+/// Tests one sub-pair (`pos21` places compound 1 in compound 2's frame; `pieces` are its pieces'
+/// SAT data, where they are convex polyhedra); `Some(gap)` when its pieces are proven apart (see
+/// [`sat_manifold`]).
 fn piece_pair<M, C>(
     pos21: &Pose,
-    c1: &dyn CompositeShape,
-    c2: &dyn CompositeShape,
+    (c1, c2): (&dyn CompositeShape, &dyn CompositeShape),
+    pieces: (Option<&SatPiece>, Option<&SatPiece>),
     slot: &mut Slot<M, C>,
     prediction: Real,
 ) -> Option<Real>
@@ -226,8 +240,11 @@ where
         c2.map_part_at(slot.leaf2, &mut |part2, shape2, normals2| {
             // Piece 2 in piece 1's frame, (part2⁻¹ · pos21 · part1)⁻¹, composed as parry does.
             let pos = part2.inv_mul(&part1.prepend_to(pos21)).inverse();
-            gap = match (shape1.as_convex_polyhedron(), shape2.as_convex_polyhedron()) {
-                (Some(a), Some(b)) => sat_manifold(&pos, a, b, prediction, manifold),
+            let polyhedra = (shape1.as_convex_polyhedron(), shape2.as_convex_polyhedron());
+            gap = match (polyhedra, pieces) {
+                ((Some(a), Some(b)), (Some(sa), Some(sb))) => {
+                    sat_manifold(&pos, (a, sa), (b, sb), prediction, manifold)
+                }
                 _ => {
                     let _ = DefaultQueryDispatcher.contact_manifold_convex_convex(
                         &pos, shape1, shape2, normals1, normals2, prediction, manifold,
@@ -319,8 +336,8 @@ where
                 None => Slot {
                     leaf1,
                     leaf2,
-                    r1: leaf_radius(&mut self.radii1, c1, leaf1),
-                    r2: leaf_radius(&mut self.radii2, c2, leaf2),
+                    r1: leaf(&mut self.leaves1, c1, leaf1).radius,
+                    r2: leaf(&mut self.leaves2, c2, leaf2).radius,
                     gap: 0.0,
                     checked: self.odometer,
                     manifold: new_manifold(c1, c2, leaf1, leaf2),
@@ -381,17 +398,28 @@ fn body_radius(c: &dyn CompositeShape) -> Real {
     corner_radius(&c.bvh().root_aabb())
 }
 
-/// Largest distance of a point of one piece from its compound's origin, cached per leaf.
-fn leaf_radius(cache: &mut Vec<Real>, c: &dyn CompositeShape, leaf: u32) -> Real {
+/// The SAT data of a piece already met.
+fn sat_of(leaves: &[Option<Leaf>], leaf: u32) -> Option<&SatPiece> {
+    leaves[leaf as usize].as_ref().and_then(|l| l.sat.as_ref())
+}
+
+/// What is kept of one piece of a compound (its largest distance from the compound's origin and
+/// its SAT data), computed at first use.
+fn leaf<'a>(cache: &'a mut Vec<Option<Leaf>>, c: &dyn CompositeShape, leaf: u32) -> &'a Leaf {
     let i = leaf as usize;
     if cache.len() <= i {
-        cache.resize(i + 1, Real::NAN);
+        cache.resize(i + 1, None);
     }
-    if cache[i].is_nan() {
+    cache[i].get_or_insert_with(|| {
+        let mut out = Leaf {
+            radius: 0.0,
+            sat: None,
+        };
         c.map_part_at(leaf, &mut |part, shape, _| {
             let pose = part.copied().unwrap_or(Pose::IDENTITY);
-            cache[i] = corner_radius(&shape.compute_aabb(&pose));
+            out.radius = corner_radius(&shape.compute_aabb(&pose));
+            out.sat = shape.as_convex_polyhedron().map(SatPiece::new);
         });
-    }
-    cache[i]
+        out
+    })
 }

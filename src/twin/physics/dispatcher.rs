@@ -3,7 +3,7 @@
 //! candidate list of [`super::compound`], and rapier's defaults for every other shape.
 
 use super::compound::compound_manifolds;
-use super::sat::sat_manifold;
+use super::sat::{SatPiece, sat_manifold};
 use rapier3d::parry::math::{Pose, Real, Vector};
 use rapier3d::parry::query::details::{NormalConstraints, contact_manifolds_composite_shape_shape};
 use rapier3d::parry::query::{
@@ -159,7 +159,8 @@ where
     ) -> Result<(), Unsupported> {
         match (g1.as_convex_polyhedron(), g2.as_convex_polyhedron()) {
             (Some(a), Some(b)) => {
-                sat_manifold(pos12, a, b, prediction, manifold);
+                let (sa, sb) = (SatPiece::new(a), SatPiece::new(b));
+                sat_manifold(pos12, (a, &sa), (b, &sb), prediction, manifold);
                 Ok(())
             }
             _ => DefaultQueryDispatcher.contact_manifold_convex_convex(

@@ -50,13 +50,14 @@ const COHERENCE_DIST_SQ: Real = 1e-12;
 /// manifold from flickering between a face and an edge of a resting face contact.
 const EDGE_TOLERANCE: Real = 1e-7;
 
-/// The SAT manifold of two pieces (`pos12` places `b` in `a`'s frame). Returns `Some(gap)` when
-/// the pieces are apart by more than `prediction`: `gap` (metres) is a lower bound on their
-/// distance, the separation along the axis that proved it (the manifold is then empty).
+/// The SAT manifold of two pieces (`pos12` places `b` in `a`'s frame; `sa`, `sb` are their
+/// [`SatPiece`]s). Returns `Some(gap)` when the pieces are apart by more than `prediction`: `gap`
+/// (metres) is a lower bound on their distance, the separation along the axis that proved it (the
+/// manifold is then empty).
 pub(crate) fn sat_manifold<M, C: Default + Copy>(
     pos12: &Pose,
-    a: &ConvexPolyhedron,
-    b: &ConvexPolyhedron,
+    (a, sa): (&ConvexPolyhedron, &SatPiece),
+    (b, sb): (&ConvexPolyhedron, &SatPiece),
     prediction: Real,
     manifold: &mut ContactManifold<M, C>,
 ) -> Option<Real> {
@@ -74,7 +75,8 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
             return Some(gap);
         }
     }
-    let best = SCRATCH.with_borrow_mut(|scratch| best_axis(pos12, a, b, prediction, scratch));
+    let best =
+        SCRATCH.with_borrow_mut(|scratch| best_axis(pos12, (a, sa), (b, sb), prediction, scratch));
     let (_, axis, n1) = match best {
         Ok(best) => best,
         Err((separating, gap)) => {
@@ -101,8 +103,8 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
 /// `Err((axis, gap))` as soon as one separates them by more than `prediction`.
 fn best_axis(
     pos12: &Pose,
-    a: &ConvexPolyhedron,
-    b: &ConvexPolyhedron,
+    (a, sa): (&ConvexPolyhedron, &SatPiece),
+    (b, sb): (&ConvexPolyhedron, &SatPiece),
     prediction: Real,
     scratch: &mut Scratch,
 ) -> Result<(Real, Axis, Vector), (Vector, Real)> {
@@ -113,15 +115,11 @@ fn best_axis(
     nb.clear();
     nb.extend(b.faces().iter().map(|f| pos12.rotation * f.normal));
     let pa = a.points();
-    let vertex_of_face = |p: &ConvexPolyhedron, f: usize| {
-        p.vertices_adj_to_face()[p.faces()[f].first_vertex_or_edge as usize] as usize
-    };
 
     // Face normals of A: separation = min over B along n minus A's face plane.
     let mut best = (Real::MIN, Axis::FaceA(0), Vector::ZERO);
-    for (i, f) in a.faces().iter().enumerate() {
+    for (i, (f, &plane)) in a.faces().iter().zip(&sa.planes).enumerate() {
         let n = f.normal;
-        let plane = n.dot(pa[vertex_of_face(a, i)]);
         let s = pb.iter().fold(Real::MAX, |m, p| m.min(n.dot(*p))) - plane;
         if s > prediction {
             return Err((n, s));
@@ -131,8 +129,8 @@ fn best_axis(
         }
     }
     // Face normals of B (axis -m from A to B): separation = min over A along m minus B's plane.
-    for (i, m) in nb.iter().enumerate() {
-        let plane = m.dot(pb[vertex_of_face(b, i)]);
+    for (i, (m, &v)) in nb.iter().zip(&sb.face_vertex).enumerate() {
+        let plane = m.dot(pb[v as usize]);
         let s = pa.iter().fold(Real::MAX, |acc, p| acc.min(m.dot(*p))) - plane;
         if s > prediction {
             return Err((-*m, s));
@@ -143,23 +141,21 @@ fn best_axis(
         }
     }
     // Edge pairs that make a face of the Minkowski difference.
-    edge_stage(a, b, pos12, prediction, best, scratch)
+    edge_stage((a, sa), (b, sb), pos12, prediction, best, scratch)
 }
 
 /// The best axis after the face axes `best`, among edge pairs of A and B that make a face of the
 /// Minkowski difference; `Err((axis, gap))` as soon as one separates the pieces by more than
-/// `prediction`.
-/// `nb` and `pb` are B's face normals and points in A's frame.
+/// `prediction`. `scratch` holds B's points and face normals in A's frame.
 fn edge_stage(
-    a: &ConvexPolyhedron,
-    b: &ConvexPolyhedron,
+    (a, sa): (&ConvexPolyhedron, &SatPiece),
+    (b, sb): (&ConvexPolyhedron, &SatPiece),
     pos12: &Pose,
     prediction: Real,
     mut best: (Real, Axis, Vector),
     scratch: &mut Scratch,
 ) -> Result<(Real, Axis, Vector), (Vector, Real)> {
     let pa = a.points();
-    let centroid_a = pa.iter().copied().sum::<Vector>() / pa.len() as Real;
     let face_limit = best.0;
     let Scratch {
         arcs,
@@ -167,42 +163,140 @@ fn edge_stage(
         pb,
         nb,
     } = scratch;
-    arcs.fill(b, nb, pos12, pb);
+    arcs.fill(b, sb, nb, pos12);
     crosses.clear();
     crosses.resize(arcs.len(), false);
-    for (ia, ea) in a
-        .edges()
-        .iter()
-        .enumerate()
-        .filter(|(_, e)| is_real(e.faces))
-    {
-        let (fa1, fa2) = (
-            a.faces()[ea.faces[0] as usize].normal,
-            a.faces()[ea.faces[1] as usize].normal,
-        );
-        let p_a = pa[ea.vertices[0] as usize];
-        arcs.crossing(fa1, fa2, crosses);
+    for ea in &sa.edges {
+        let dir_a = a.edges()[ea.index as usize].dir;
+        let p_a = pa[ea.v0 as usize];
+        let outward = p_a - sa.centroid;
+        arcs.crossing(ea, crosses);
         for j in (0..crosses.len()).filter(|&j| crosses[j]) {
-            let ib = arcs.edge[j];
-            let axis = ea.dir.cross(arcs.dir[j]);
+            let eb = &sb.edges[j];
+            let start_b = pb[eb.v0 as usize];
+            let axis = dir_a.cross(arcs.dir[j]);
+            // Only an axis that could beat the best so far (or end the test) is normalised.
+            let limit = best.0.max(face_limit + EDGE_TOLERANCE).min(prediction);
+            if surely_below(axis, start_b - p_a, outward, limit) {
+                continue;
+            }
             let len = axis.length();
             if len < 1e-5 {
                 continue;
             }
             let mut axis = axis / len;
-            if axis.dot(p_a - centroid_a) < 0.0 {
+            if axis.dot(outward) < 0.0 {
                 axis = -axis;
             }
-            let s = axis.dot(arcs.start[j] - p_a);
+            let s = axis.dot(start_b - p_a);
             if s > prediction {
                 return Err((axis, s));
             }
             if s > best.0.max(face_limit + EDGE_TOLERANCE) {
-                best = (s, Axis::Edges(ia, ib), axis);
+                best = (s, Axis::Edges(ea.index as usize, eb.index as usize), axis);
             }
         }
     }
     Ok(best)
+}
+
+/// Relative slack of [`surely_below`], far above the f32 rounding of the few operations it bounds
+/// (a few units of 6e-8).
+const SLACK: Real = 1e-5;
+
+/// Whether the separation along the edge axis `raw / |raw|` (turned to point along `outward`,
+/// away from A), as the edge stage computes it in f32 from `raw` and `diff` (from A's edge to B's),
+/// is surely below `limit`, without the square root and the division: the pair could then
+/// neither beat the best axis nor end the test, and skipping it leaves the result as it was, to
+/// the bit. Unsure (an axis nearly across `outward`, a separation near the limit): `false`.
+fn surely_below(raw: Vector, diff: Vector, outward: Vector, limit: Real) -> bool {
+    let l1 = |v: Vector| v.x.abs() + v.y.abs() + v.z.abs();
+    let r1 = l1(raw);
+    let along = raw.dot(outward);
+    if along.abs() <= SLACK * r1 * l1(outward) {
+        return false;
+    }
+    let s = if along < 0.0 {
+        -raw.dot(diff)
+    } else {
+        raw.dot(diff)
+    };
+    // `upper / |raw|` bounds the separation the edge stage would compute.
+    let upper = s + SLACK * r1 * l1(diff);
+    if limit >= 0.0 {
+        upper < 0.0
+    } else {
+        upper < 0.0 && upper * upper > limit * limit * raw.length_squared() * (1.0 + SLACK)
+    }
+}
+
+/// What the separating-axis test needs of a piece besides its polyhedron, computed once per piece
+/// (its own frame), with the same operations the test used to repeat at every call.
+#[derive(Clone, Debug)]
+pub(crate) struct SatPiece {
+    /// Per face, the offset of its plane along its normal, metres.
+    planes: Vec<Real>,
+    /// Per face, the index of its first vertex.
+    face_vertex: Vec<u32>,
+    /// The real edges, in the polyhedron's order (see [`is_real`]).
+    edges: Vec<RealEdge>,
+    /// The mean of the vertices.
+    centroid: Vector,
+}
+
+/// A real edge of a piece and its arc on the Gauss map.
+#[derive(Clone, Debug)]
+struct RealEdge {
+    /// Its index among the polyhedron's edges, its first vertex and its two faces.
+    index: u32,
+    v0: u32,
+    faces: [u32; 2],
+    /// The normals of its two faces, and their cross product `n2 x n1`.
+    n1: Vector,
+    n2: Vector,
+    w: Vector,
+}
+
+impl SatPiece {
+    pub(crate) fn new(p: &ConvexPolyhedron) -> Self {
+        let points = p.points();
+        let face_vertex: Vec<u32> = p
+            .faces()
+            .iter()
+            .map(|f| p.vertices_adj_to_face()[f.first_vertex_or_edge as usize])
+            .collect();
+        let planes = p
+            .faces()
+            .iter()
+            .zip(&face_vertex)
+            .map(|(f, &v)| f.normal.dot(points[v as usize]))
+            .collect();
+        let edges = p
+            .edges()
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| is_real(e.faces))
+            .map(|(i, e)| {
+                let n1 = p.faces()[e.faces[0] as usize].normal;
+                let n2 = p.faces()[e.faces[1] as usize].normal;
+                RealEdge {
+                    index: i as u32,
+                    v0: e.vertices[0],
+                    faces: e.faces,
+                    n1,
+                    n2,
+                    w: n2.cross(n1),
+                }
+            })
+            .collect();
+        let centroid = points.iter().copied().sum::<Vector>() / points.len() as Real;
+        SatPiece {
+            planes,
+            face_vertex,
+            edges,
+            centroid,
+        }
+    }
 }
 
 /// Buffers reused across calls (one set per thread), so that a full test allocates nothing.
@@ -227,23 +321,21 @@ fn is_real(faces: [u32; 2]) -> bool {
 }
 
 /// The real edges of the second piece on the Gauss map, in the first piece's frame, stored by
-/// coordinate so that the crossing test runs over all of them at once (vectorised): per edge,
-/// its two adjacent face normals negated (`n1`, `n2`) and their cross product, and its index.
+/// coordinate so that the crossing test runs over all of them at once (vectorised): per edge (in
+/// the order of its [`SatPiece`]), its two adjacent face normals negated (`n1`, `n2`) and their
+/// cross product, and its direction.
 #[derive(Default)]
 struct GaussArcs {
-    edge: Vec<usize>,
-    /// Each edge's direction and first vertex in A's frame.
     dir: Vec<Vector>,
-    start: Vec<Vector>,
     n1: [Vec<Real>; 3],
     n2: [Vec<Real>; 3],
     cross: [Vec<Real>; 3],
 }
 
 impl GaussArcs {
-    /// Refills with the real edges of `b`: its face normals `nb` and points `pb` are already in
-    /// A's frame, `pos12` turns the edge directions.
-    fn fill(&mut self, b: &ConvexPolyhedron, nb: &[Vector], pos12: &Pose, pb: &[Vector]) {
+    /// Refills with the real edges of `b` (`sb`): its face normals `nb` are already in A's frame,
+    /// `pos12` turns the edge directions.
+    fn fill(&mut self, b: &ConvexPolyhedron, sb: &SatPiece, nb: &[Vector], pos12: &Pose) {
         for v in self
             .n1
             .iter_mut()
@@ -252,18 +344,10 @@ impl GaussArcs {
         {
             v.clear();
         }
-        self.edge.clear();
         self.dir.clear();
-        self.start.clear();
-        for (i, e) in b
-            .edges()
-            .iter()
-            .enumerate()
-            .filter(|(_, e)| is_real(e.faces))
-        {
-            self.edge.push(i);
-            self.dir.push(pos12.rotation * e.dir);
-            self.start.push(pb[e.vertices[0] as usize]);
+        for e in &sb.edges {
+            self.dir
+                .push(pos12.rotation * b.edges()[e.index as usize].dir);
             let (c, d) = (-nb[e.faces[0] as usize], -nb[e.faces[1] as usize]);
             let x = d.cross(c);
             for k in 0..3 {
@@ -278,10 +362,10 @@ impl GaussArcs {
         self.n1[0].len()
     }
 
-    /// Which arcs cross the arc (fa1, fa2) of an edge of A: the Gauss-map test of
-    /// D. Gregorius (GDC 2013), without branches so that it vectorises.
-    fn crossing(&self, fa1: Vector, fa2: Vector, out: &mut [bool]) {
-        let w = fa2.cross(fa1);
+    /// Which arcs cross the arc of `ea`, an edge of A: the Gauss-map test of D. Gregorius
+    /// (GDC 2013), without branches so that it vectorises.
+    fn crossing(&self, ea: &RealEdge, out: &mut [bool]) {
+        let (fa1, fa2, w) = (ea.n1, ea.n2, ea.w);
         let m = out.len();
         let [n1x, n1y, n1z] = &self.n1;
         let [n2x, n2y, n2z] = &self.n2;
@@ -474,4 +558,89 @@ fn closest_points_segments(p0: Vector, p1: Vector, q0: Vector, q1: Vector) -> (V
         s = ((b - c) / a.max(1e-12)).clamp(0.0, 1.0);
     }
     (p0 + d1 * s, q0 + d2 * t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use rapier3d::parry::math::Rotation;
+
+    /// A chamfered wall strip like the ones the pegs' outlines become: a 4 x 1 x 20 mm prism
+    /// with a 45 deg bevel along one long edge.
+    fn strip() -> ConvexPolyhedron {
+        let mut points = Vec::new();
+        for z in [0.0, 20e-3] {
+            for (x, y) in [
+                (0.0, 0.0),
+                (4e-3, 0.0),
+                (4e-3, 0.5e-3),
+                (3.5e-3, 1e-3),
+                (0.0, 1e-3),
+            ] {
+                points.push(Vector::new(x, y, z));
+            }
+        }
+        ConvexPolyhedron::from_convex_hull(&points).expect("a strip")
+    }
+
+    /// For overlapping pieces the separating-axis value is the largest separation over every
+    /// direction, so no face normal and no cross product of any two edges (whether or not they
+    /// make a face of the Minkowski difference) may separate them more than the axis found; and
+    /// the axis found separates them by the value reported. Run over random overlaps of two
+    /// strips, with edge axes among the winners (the path the edge stage's shortcut takes).
+    #[test]
+    fn the_axis_found_separates_overlapping_pieces_most() {
+        let (a, b) = (strip(), strip());
+        let (sa, sb) = (SatPiece::new(&a), SatPiece::new(&b));
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut scratch = Scratch::default();
+        let (mut overlapping, mut by_edges) = (0, 0);
+        for _ in 0..4000 {
+            let angles = Vector::new(rng.random(), rng.random(), rng.random()) * 2.0 - Vector::ONE;
+            let rotation = Rotation::from_scaled_axis(angles * rng.random_range(0.0..3.2));
+            let offset = Vector::new(
+                rng.random_range(-5e-3..5e-3),
+                rng.random_range(-3e-3..3e-3),
+                rng.random_range(-20e-3..20e-3),
+            );
+            let pos12 = Pose::from_parts(offset, rotation);
+            let Ok((s, axis, n)) = best_axis(&pos12, (&a, &sa), (&b, &sb), 30e-6, &mut scratch)
+            else {
+                continue;
+            };
+            if s >= 0.0 {
+                continue;
+            }
+            overlapping += 1;
+            by_edges += usize::from(matches!(axis, Axis::Edges(..)));
+            let mut candidates: Vec<Vector> = a.faces().iter().map(|f| f.normal).collect();
+            candidates.extend(b.faces().iter().map(|f| pos12.rotation * -f.normal));
+            for ea in a.edges() {
+                for eb in b.edges() {
+                    let x = ea.dir.cross(pos12.rotation * eb.dir);
+                    if x.length() > 1e-3 {
+                        candidates.extend([x.normalize(), -x.normalize()]);
+                    }
+                }
+            }
+            let most = candidates
+                .iter()
+                .map(|&u| separation(&a, &b, &pos12, u))
+                .fold(Real::MIN, Real::max);
+            let tolerance = 1e-6;
+            assert!(
+                most <= s + EDGE_TOLERANCE + tolerance,
+                "{most} beyond {s} ({pos12:?})"
+            );
+            let along = separation(&a, &b, &pos12, n);
+            assert!(
+                (along - s).abs() < tolerance,
+                "{along} against {s} ({pos12:?})"
+            );
+        }
+        assert!(overlapping > 1000, "{overlapping} overlaps");
+        assert!(by_edges > 50, "{by_edges} edge axes among {overlapping}");
+    }
 }
