@@ -20,7 +20,7 @@ use crate::twin::physics::{
     set_prediction_for_speed, v64,
 };
 use crate::twin::robot::spec::RobotSpec;
-use crate::twin::robot::{Inertial, Iso, RobotModel, Tool};
+use crate::twin::robot::{Dynamics, Inertial, Iso, RobotModel, Tool};
 use crate::twin::sensing::{SensorParams, Sensors, Wrench6};
 use nalgebra::{DVector, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rapier3d::prelude::{ColliderBuilder, ColliderHandle, InteractionGroups, PhysicsWorld};
@@ -38,6 +38,19 @@ pub const ARM_SOLVER_ITERATIONS: usize = 2;
 /// direct trials fault with one pass, none with four); four cost a third of the arm's speed
 /// (docs/physics.md, "The arm at 0.1 mm").
 pub const ARM_PGS_ITERATIONS: usize = 4;
+
+/// The arm cell's floor of the contact prediction distance, m. The distance is otherwise 1.5
+/// times how far the peg's fastest point gets in the step, at its speed now plus what the
+/// torques of the last control cycle add in one step ([`Cell::accel_ahead`]): the floor covers
+/// only what neither foresees (contact impulses, the velocity-squared terms). The free peg of
+/// `validate` keeps 30 um ([`crate::twin::physics::MIN_PREDICTION_M`]). A piece pair within the
+/// distance is tested at every step, and 10 um instead of 30 halves the gear's step at 0.1 mm
+/// (docs/performance.md).
+pub const ARM_MIN_PREDICTION_M: f64 = 10e-6;
+
+/// The arm cell's contact prediction in words, for the manifold cache's key: a manifold built
+/// under an earlier rule is rebuilt, not reused.
+pub const ARM_PREDICTION_RULE: &str = "1.5 x (speed + torque lookahead) x dt, 10 um floor";
 
 /// Cell layout and the parameters of everything in it.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -153,6 +166,9 @@ pub struct Cell {
     tau_link: DVector<f64>,
     /// Joint velocities after the last physics step, rad/s.
     qd: Vec<f64>,
+    /// Bound on the acceleration of the peg's points under the torques of the last control
+    /// cycle, free of contact (`free_acceleration_bound`), m/s^2.
+    accel_ahead: f64,
     /// An external wrench pushed onto the TCP (base frame, torque about the TCP), for diagnostics.
     disturbance: Option<Wrench6>,
     /// TCP pose from the encoder readings of the last control cycle (base frame): the model's
@@ -174,6 +190,27 @@ pub struct Cell {
     peg_contacts: Option<ContactSolve>,
     /// Coulomb friction between the peg and what it touches.
     friction: f64,
+}
+
+/// Bound on the acceleration (m/s^2) of any point of the tool within `reach_m` of the TCP, free
+/// of contact, under the torques `tau` at the joint speeds `qd` (rad/s) and viscous joint
+/// `damping` (N m s/rad): `qdd = M^-1 (tau - g - D qd)`, at the TCP `J qdd = [a; alpha]`, and
+/// `|a| + |alpha| reach_m`. The velocity-squared terms are left out (small at the arm's speeds
+/// beside what a change of torque brings). A mass matrix that does not factor (a joint state no
+/// longer finite, which the cell reports as a `sim_fault`) gives 0.
+fn free_acceleration_bound(
+    d: &Dynamics,
+    tau: &DVector<f64>,
+    qd: &[f64],
+    damping: &[f64],
+    reach_m: f64,
+) -> f64 {
+    let rhs = DVector::from_fn(tau.len(), |i, _| tau[i] - d.gravity[i] - damping[i] * qd[i]);
+    let Some(chol) = d.mass.clone().cholesky() else {
+        return 0.0;
+    };
+    let tcp = &d.jacobian * chol.solve(&rhs);
+    tcp.fixed_rows::<3>(0).norm() + tcp.fixed_rows::<3>(3).norm() * reach_m
 }
 
 /// What the robot reports, as of its last control cycle: the only inputs of the method.
@@ -356,6 +393,7 @@ impl Cell {
             dt_s: dt,
             tau: DVector::zeros(n),
             tau_link: DVector::zeros(n),
+            accel_ahead: 0.0,
             qd: vec![0.0; n],
             disturbance: None,
             tcp_measured: model_tcp,
@@ -398,7 +436,8 @@ impl Cell {
             self.apply_disturbance(&w);
         }
         let speed = max_point_speed(&self.world, self.arm.last_body(), self.peg_reach_m);
-        set_prediction_for_speed(&mut self.world, speed);
+        let ahead = speed + self.accel_ahead * dt;
+        set_prediction_for_speed(&mut self.world, ahead, ARM_MIN_PREDICTION_M);
         let q_before = self.arm.q(&self.world);
         self.world.step();
         self.arm.clear_torques(&mut self.world);
@@ -544,6 +583,9 @@ impl Cell {
         self.tcp_measured = d.tcp;
         self.sensors.estimate(&d, &self.qd, &tau_meas, period);
         self.tau = self.controller.update(&d, &q_meas, &self.qd);
+        let damping: Vec<f64> = self.model.joints.iter().map(|j| j.damping).collect();
+        self.accel_ahead =
+            free_acceleration_bound(&d, &self.tau, &self.qd, &damping, self.peg_reach_m);
         let now = self.time_s();
         for (at, &sat) in self
             .saturated_at_s
@@ -731,4 +773,58 @@ fn add_table(world: &mut PhysicsWorld) {
     let table = ColliderBuilder::cuboid(0.8, 0.8, 0.025)
         .translation(crate::twin::physics::v32(&Vector3::new(0.4, 0.0, -0.025)));
     world.insert_collider(table, None);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::twin::geometry::{build_builtin, builtin_by_name};
+    use crate::twin::robot::urdf::iiwa14;
+
+    /// The stiffest, least damped corner of the Sunrise box (5 000 N/m, 300 N m/rad, damping
+    /// 0.1) thrown 5 mm and 3 deg off its target: the peg's fastest point never gets farther in a
+    /// step than the contacts were predicted, though its speed at the start of a step alone
+    /// (1.5 x, and the floor) would have fallen short.
+    #[test]
+    fn the_prediction_covers_every_step_of_a_stiff_arm_thrown_off_its_target() {
+        let pair = build_builtin(builtin_by_name("cross").expect("cross"), 0.5e-3).expect("pair");
+        let params = CellParams::default();
+        let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.05);
+        let gains = ImpedanceGains::uniform(5000.0, 300.0, 0.1);
+        let mut cell = Cell::new(
+            &pair,
+            iiwa14().expect("iiwa"),
+            &params,
+            None,
+            &start,
+            gains,
+            1,
+        )
+        .expect("cell");
+        let target = start
+            * Iso::translation(5e-3, 0.0, 0.0)
+            * Iso::rotation(Vector3::new(0.0, 3f64.to_radians(), 0.0));
+        cell.command_pose(target);
+        let (mut worst, mut speed_only_short) = (f64::MIN, 0);
+        for _ in 0..300 {
+            let reach = cell.peg_reach_m;
+            let before = max_point_speed(&cell.world, cell.arm.last_body(), reach);
+            cell.step();
+            let predicted = cell.world.integration_parameters.prediction_distance() as f64;
+            let after = max_point_speed(&cell.world, cell.arm.last_body(), reach);
+            let moved = after * cell.dt_s;
+            worst = worst.max(moved - predicted);
+            let speed_only = ARM_MIN_PREDICTION_M.max(1.5 * before * cell.dt_s);
+            speed_only_short += usize::from(moved > speed_only);
+        }
+        assert!(
+            worst <= 0.0,
+            "a step moved {:.2} um beyond its prediction",
+            worst * 1e6
+        );
+        assert!(
+            speed_only_short > 0,
+            "the throw should outrun the speed alone"
+        );
+    }
 }

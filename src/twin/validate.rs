@@ -150,7 +150,8 @@ impl FreePegRig {
         rb.add_force(v32(&(force + gravity_comp)), true);
         rb.add_torque(v32(&torque), true);
         let speed = crate::twin::physics::max_point_speed(&self.world, self.body, self.reach_m);
-        crate::twin::physics::set_prediction_for_speed(&mut self.world, speed);
+        let floor = crate::twin::physics::MIN_PREDICTION_M;
+        crate::twin::physics::set_prediction_for_speed(&mut self.world, speed, floor);
         let started = Instant::now();
         self.world.step();
         let step_s = started.elapsed().as_secs_f64();

@@ -11,7 +11,7 @@ use super::Manifold;
 use super::build::{SamplerConfig, build};
 use super::file;
 use crate::error::{Error, Result};
-use crate::twin::cell::CellParams;
+use crate::twin::cell::{ARM_PREDICTION_RULE, CellParams};
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
 use serde::{Deserialize, Serialize};
@@ -65,9 +65,11 @@ pub struct Recipe<'a> {
 }
 
 impl Recipe<'_> {
-    /// The checksum that names the cached file.
+    /// The checksum that names the cached file (the physics parameters and the arm cell's
+    /// contact prediction rule included).
     pub fn key(&self) -> String {
-        let json = serde_json::to_string(&(self, &self.params.physics)).expect("recipe serialises");
+        let physics = (&self.params.physics, ARM_PREDICTION_RULE);
+        let json = serde_json::to_string(&(self, physics)).expect("recipe serialises");
         format!("{:08x}", crc32fast::hash(json.as_bytes()))
     }
 }
