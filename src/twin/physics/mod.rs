@@ -5,8 +5,9 @@
 //! contact recycling off (stale contacts let a peg tunnel or jam falsely in a tight hole),
 //! contact clustering off (clustered impulses over-report the force), `length_unit` 0.01 m, contact
 //! softness 240 Hz (the default 30/60 Hz lets a peg sink into a rim it cannot enter), 1 ms step,
-//! 4 solver iterations, Coulomb friction per contact point, predictive contacts 30 um ahead or
-//! further at speed (`set_prediction_for_speed`), and rapier's swept CCD off (it treats a body with 0.3 mm
+//! 4 solver iterations, Coulomb friction per contact point, predictive contacts 30 um ahead (the
+//! arm cell: 10 um, as it also looks ahead at its torques) or further at speed
+//! (`set_prediction_for_speed`), and rapier's swept CCD off (it treats a body with 0.3 mm
 //! chamfer pieces as "fast" at any speed and sweeps every piece: 54 % of the time of a `gear` step).
 
 pub mod arm;
