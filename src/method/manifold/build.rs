@@ -178,22 +178,20 @@ pub fn run_episode(
 }
 
 /// Voxel-grid downsampling to `n` poses in the scaled space of `metric` (see the module doc).
+/// The cell size is found by bisection, each step counting the occupied cells of ~10^6 poses:
+/// the counting and the sorts run on the thread pool (the same result on any number of threads:
+/// every sorted key is distinct, so the order is the one a serial sort gives).
 pub fn downsample(points: &[Pose6], metric: &PoseMetric, n: usize, seed: u64) -> Vec<Pose6> {
     if points.len() <= n {
         return points.to_vec();
     }
-    let scaled: Vec<[f64; 6]> = points.iter().map(|p| metric.scaled(p)).collect();
-    // Every pose with its cell at a cell size, sorted by cell (then pose): a cell is a run.
-    let keyed = |size: f64| -> Vec<([i64; 6], u32)> {
-        let mut keyed: Vec<([i64; 6], u32)> = scaled
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (p.map(|v| (v / size).floor() as i64), i as u32))
-            .collect();
-        keyed.sort_unstable();
-        keyed
+    let scaled: Vec<[f64; 6]> = points.par_iter().map(|p| metric.scaled(p)).collect();
+    let cell_of = |p: &[f64; 6], size: f64| p.map(|v| (v / size).floor() as i64);
+    let count_at = |size: f64| {
+        let mut cells: Vec<[i64; 6]> = scaled.par_iter().map(|p| cell_of(p, size)).collect();
+        cells.par_sort_unstable();
+        1 + cells.windows(2).filter(|w| w[0] != w[1]).count()
     };
-    let count_at = |size: f64| keyed(size).chunk_by(|a, b| a.0 == b.0).count();
     // Bisection on the log of the cell size: the largest size that still gives n cells.
     let spread = scaled
         .iter()
@@ -207,7 +205,14 @@ pub fn downsample(points: &[Pose6], metric: &PoseMetric, n: usize, seed: u64) ->
             large = mid;
         }
     }
-    let mut chosen: Vec<usize> = keyed(small)
+    // Every pose with its cell, sorted by cell (then pose): a cell is a run.
+    let mut keyed: Vec<([i64; 6], u32)> = scaled
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (cell_of(p, small), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    let mut chosen: Vec<usize> = keyed
         .chunk_by(|a, b| a.0 == b.0)
         .map(|cell| representative(&cell.iter().map(|m| m.1).collect::<Vec<_>>(), &scaled))
         .collect();
@@ -412,10 +417,14 @@ mod tests {
         // 500 cells per region is coarse (3 to 4 cells per axis), so where the grid happens to
         // cut each region moves the share by up to (4/3)^3: 0.5 to 0.7 is unbiased at this size.
         assert!(dense < 0.7, "share of the dense region {dense} (raw 0.91)");
+        let one_thread = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("a pool");
         assert_eq!(
             kept,
-            downsample(&points, &PoseMetric::default(), 1_000, 7),
-            "deterministic"
+            one_thread.install(|| downsample(&points, &PoseMetric::default(), 1_000, 7)),
+            "the same on one thread"
         );
         assert!(
             kept.iter().all(|k| points.contains(k)),
