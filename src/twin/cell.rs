@@ -193,19 +193,20 @@ pub struct Cell {
 }
 
 /// Bound on the acceleration (m/s^2) of any point of the tool within `reach_m` of the TCP, free
-/// of contact, under the torques `tau` at the joint speeds `qd` (rad/s) and viscous joint
-/// `damping` (N m s/rad): `qdd = M^-1 (tau - g - D qd)`, at the TCP `J qdd = [a; alpha]`, and
+/// of contact, under the torques `tau` at the joint speeds `qd` (rad/s) and the viscous damping
+/// of `model`'s joints: `qdd = M^-1 (tau - g - D qd)`, at the TCP `J qdd = [a; alpha]`, and
 /// `|a| + |alpha| reach_m`. The velocity-squared terms are left out (small at the arm's speeds
 /// beside what a change of torque brings). A mass matrix that does not factor (a joint state no
 /// longer finite, which the cell reports as a `sim_fault`) gives 0.
 fn free_acceleration_bound(
+    model: &RobotModel,
     d: &Dynamics,
     tau: &DVector<f64>,
     qd: &[f64],
-    damping: &[f64],
     reach_m: f64,
 ) -> f64 {
-    let rhs = DVector::from_fn(tau.len(), |i, _| tau[i] - d.gravity[i] - damping[i] * qd[i]);
+    let damping = |i: usize| model.joints[i].damping;
+    let rhs = DVector::from_fn(tau.len(), |i, _| tau[i] - d.gravity[i] - damping(i) * qd[i]);
     let Some(chol) = d.mass.clone().cholesky() else {
         return 0.0;
     };
@@ -583,9 +584,8 @@ impl Cell {
         self.tcp_measured = d.tcp;
         self.sensors.estimate(&d, &self.qd, &tau_meas, period);
         self.tau = self.controller.update(&d, &q_meas, &self.qd);
-        let damping: Vec<f64> = self.model.joints.iter().map(|j| j.damping).collect();
         self.accel_ahead =
-            free_acceleration_bound(&d, &self.tau, &self.qd, &damping, self.peg_reach_m);
+            free_acceleration_bound(&self.model, &d, &self.tau, &self.qd, self.peg_reach_m);
         let now = self.time_s();
         for (at, &sat) in self
             .saturated_at_s

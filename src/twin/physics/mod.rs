@@ -176,9 +176,10 @@ impl PhysicsParams {
 
 /// Sets the world's contact prediction distance for the coming step: at least `floor_m`
 /// (metres; [`MIN_PREDICTION_M`] for the free peg), and 1.5 times the distance a point moving at
-/// `max_point_speed` (m/s) covers in one step, so that a fast peg still meets a rim it drops onto. rapier's per-body soft CCD
-/// does the same but drops every contact of a body resting a micrometre above a face (its
-/// pre-check uses bounding boxes without margin), so pegtwin adapts the world's distance instead.
+/// `max_point_speed` (m/s) covers in one step, so that a fast peg still meets a rim it drops
+/// onto. rapier's per-body soft CCD does the same but drops every contact of a body resting a
+/// micrometre above a face (its pre-check uses bounding boxes without margin), so pegtwin adapts
+/// the world's distance instead.
 pub fn set_prediction_for_speed(world: &mut PhysicsWorld, max_point_speed: f64, floor_m: f64) {
     let p = &mut world.integration_parameters;
     let distance = floor_m.max(1.5 * max_point_speed * p.dt as f64);

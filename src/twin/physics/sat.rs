@@ -176,8 +176,8 @@ fn edge_stage(
             let start_b = pb[eb.v0 as usize];
             let axis = dir_a.cross(arcs.dir[j]);
             // Only an axis that could beat the best so far (or end the test) is normalised.
-            let limit = best.0.max(face_limit + EDGE_TOLERANCE).min(prediction);
-            if surely_below(axis, start_b - p_a, outward, limit) {
+            let threshold = best.0.max(face_limit + EDGE_TOLERANCE);
+            if surely_below(axis, start_b - p_a, outward, threshold.min(prediction)) {
                 continue;
             }
             let len = axis.length();
@@ -192,7 +192,7 @@ fn edge_stage(
             if s > prediction {
                 return Err((axis, s));
             }
-            if s > best.0.max(face_limit + EDGE_TOLERANCE) {
+            if s > threshold {
                 best = (s, Axis::Edges(ea.index as usize, eb.index as usize), axis);
             }
         }
