@@ -142,6 +142,9 @@ fn campaign_is_identical_across_threads_shards_and_a_kill() {
         merged.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // A whole run's direct trials go on from the observation of the manifold trial of the same
+    // seed (campaign::sharing); the shards split each such pair (trial numbers i and 3 + i), so
+    // every trial there runs alone: the records and the replays are the same.
     assert_eq!(trials(&merged), reference, "merged shards");
     assert_eq!(replays_of(&merged), pages, "the shards' replays merged");
     let o = pegtwin(&[

@@ -182,7 +182,7 @@ mod tests {
     use super::*;
     use crate::campaign::records::{TrialSpec, read_records};
     use crate::campaign::run::{
-        CampaignOptions, Prepared, RunOptions, Shard, campaign_with, run_one,
+        CampaignOptions, Prepared, RunOptions, Runner, Shard, campaign_with, run_one,
     };
     use crate::campaign::scenario::Condition;
     use crate::campaign::scenario::Scenario;
@@ -271,7 +271,11 @@ mod tests {
             resume: false,
             replays: crate::campaign::replays::Replays::None,
         };
-        let out = campaign_with(&s, &dir.join("out"), whole, &run, &inject).unwrap();
+        let injected = Runner {
+            one: &inject,
+            sharing: None,
+        };
+        let out = campaign_with(&s, &dir.join("out"), whole, &run, &injected).unwrap();
         let records = read_records(&out.trials.path, false).unwrap();
         let outcomes: Vec<&str> = records.iter().map(|r| r.result.outcome.as_str()).collect();
         assert_eq!(outcomes[1..], ["error", "error"]);
@@ -303,7 +307,11 @@ mod tests {
             resume: true,
             ..whole
         };
-        let resumed = campaign_with(&s, &dir.join("out"), again, &run, &run_one).unwrap();
+        let real = Runner {
+            one: &run_one,
+            sharing: None,
+        };
+        let resumed = campaign_with(&s, &dir.join("out"), again, &run, &real).unwrap();
         assert_eq!(resumed.ran, 0);
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -8,6 +8,7 @@ pub mod replays;
 pub mod report;
 pub mod run;
 pub mod scenario;
+pub mod sharing;
 pub mod summary;
 pub mod tune;
 pub mod usage;

@@ -178,24 +178,39 @@ impl ReplayWriter {
         (pair, robot, manifold): (&PartPair, &RobotModel, Option<&Manifold>),
         run: impl FnOnce(Option<&mut dyn Recorder>) -> Result<TrialResult>,
     ) -> Result<TrialResult> {
-        if !self.policy.may_want(spec.trial) {
-            return run(None);
-        }
-        let mut replay = Replay::new(pair, robot);
-        let result = run(Some(&mut replay))?;
-        if self.policy.wants(spec.trial, &result) {
-            let path = self.folder.join(file_name(spec, &result.outcome));
-            let written = std::fs::create_dir_all(&self.folder)
-                .map_err(|e| Error::file(&self.folder, format!("cannot create: {e}")))
-                .and_then(|_| replay.write_html(&path, &result, manifold));
-            if let Err(e) = written {
-                self.failed
-                    .lock()
-                    .expect("no writer panicked")
-                    .get_or_insert(e);
-            }
-        }
+        let mut replay = self.may_want(spec).then(|| Replay::new(pair, robot));
+        let result = run(replay.as_mut().map(|r| r as &mut dyn Recorder))?;
+        self.keep(spec, replay.as_ref(), &result, manifold);
         Ok(result)
+    }
+
+    /// Whether the policy may want the replay of trial `spec` (it is recorded only then).
+    pub fn may_want(&self, spec: &TrialSpec) -> bool {
+        self.policy.may_want(spec.trial)
+    }
+
+    /// Writes `replay`, the recording of trial `spec` that ended as `result`, when the policy
+    /// wants it (a failure to write is kept for [`ReplayWriter::finish`]).
+    pub fn keep(
+        &self,
+        spec: &TrialSpec,
+        replay: Option<&Replay>,
+        result: &TrialResult,
+        manifold: Option<&Manifold>,
+    ) {
+        let Some(replay) = replay.filter(|_| self.policy.wants(spec.trial, result)) else {
+            return;
+        };
+        let path = self.folder.join(file_name(spec, &result.outcome));
+        let written = std::fs::create_dir_all(&self.folder)
+            .map_err(|e| Error::file(&self.folder, format!("cannot create: {e}")))
+            .and_then(|_| replay.write_html(&path, result, manifold));
+        if let Err(e) = written {
+            self.failed
+                .lock()
+                .expect("no writer panicked")
+                .get_or_insert(e);
+        }
     }
 
     /// The campaign's outcome, or the first replay that could not be written.

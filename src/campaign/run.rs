@@ -19,13 +19,15 @@ use crate::campaign::records::{
 };
 use crate::campaign::replays::{self, ReplayWriter, Replays};
 use crate::campaign::scenario::{Condition, Scenario};
+use crate::campaign::sharing::share_observations;
 use crate::error::{Error, Result};
 use crate::method::config::Method;
 use crate::method::manifold::Manifold;
 use crate::method::manifold::cache::{self, BuildProgress};
 use crate::method::seeds;
 use crate::method::session::Recorder;
-use crate::method::trial::{TrialResult, errored_trial, run_trial};
+use crate::method::trial::{TrialResult, errored_trial, finish_trial, observe_trial, run_trial};
+use crate::replay::Replay;
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
 use rayon::prelude::*;
@@ -294,17 +296,32 @@ pub fn run_trials(
         .collect()
 }
 
+/// How a campaign runs its trials.
+pub(crate) struct Runner<'a> {
+    /// Runs one trial by itself.
+    pub one: &'a RunOne<'a>,
+    /// With `Some`, the trials of a seed that observe alike share their observation
+    /// ([`crate::campaign::sharing`]) and record their replays here; with `None` (a test that
+    /// injects its own `one`), every trial runs alone.
+    pub sharing: Option<&'a ReplayWriter>,
+}
+
 /// Runs `trials` in parallel and hands each record to `on_done` as it finishes (from any thread),
-/// keeping none: memory stays flat however many trials a campaign runs.
+/// keeping none: memory stays flat however many trials a campaign runs. Trials that observe
+/// alike run their observation once ([`run_shared`]).
 fn stream_trials_with(
     scenario: &Scenario,
     prepared: &Prepared,
     trials: &[TrialSpec],
-    run: &RunOne<'_>,
+    runner: &Runner<'_>,
     progress: &dyn CampaignProgress,
     on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
 ) -> Result<()> {
-    trials.par_iter().try_for_each(|spec| {
+    let pieces = match runner.sharing {
+        Some(_) => share_observations(scenario, trials),
+        None => trials.iter().map(|t| vec![*t]).collect(),
+    };
+    pieces.par_iter().try_for_each(|piece| {
         if progress.should_stop() {
             return Err(Error::Stopped(
                 "the campaign was stopped; the trials that finished are kept (resume it to \
@@ -312,10 +329,87 @@ fn stream_trials_with(
                     .into(),
             ));
         }
-        let record = guarded_trial(scenario, prepared, spec, run);
+        let records = match runner.sharing {
+            Some(replays) if piece.len() > 1 => run_shared(scenario, prepared, piece, replays),
+            _ => piece
+                .iter()
+                .map(|spec| guarded_trial(scenario, prepared, spec, runner.one))
+                .collect(),
+        };
         release_freed_memory();
-        on_done(&record)
+        records.iter().try_for_each(on_done)
     })
+}
+
+/// The records of trials that observe alike ([`share_observations`]): the first one's
+/// observation runs once, and each trial goes on from a fork of it (and of its replay's
+/// recording), so that its record and its replay are the ones it gives alone, bit for bit. An
+/// error or a panic in the observation is every trial's, as it would be alone; one after it is
+/// its own trial's.
+fn run_shared(
+    scenario: &Scenario,
+    prepared: &Prepared,
+    trials: &[TrialSpec],
+    replays: &ReplayWriter,
+) -> Vec<TrialRecord> {
+    let cells = scenario.cells();
+    let first = &trials[0];
+    let (pair, robot, _) = prepared.inputs(&cells[first.cell]);
+    let params = scenario.cell_params_for(&cells[first.cell]);
+    let config = scenario.trial_config(&cells[first.cell]);
+    let mut watched = trials
+        .iter()
+        .any(|t| replays.may_want(t))
+        .then(|| Replay::new(pair, robot));
+    let observed = guarded(|| {
+        let recorder = watched.as_mut().map(|r| r as &mut dyn Recorder);
+        observe_trial(pair, robot, &params, &config, first.seed, recorder)
+    });
+    let observed = match observed {
+        Ok(observed) => observed,
+        Err(message) => {
+            return trials
+                .iter()
+                .map(|spec| record(spec, errored(scenario, prepared, spec, message.clone())))
+                .collect();
+        }
+    };
+    let records = trials.iter().map(|spec| {
+        let cell = &cells[spec.cell];
+        let (_, _, manifold) = prepared.inputs(cell);
+        let config = scenario.trial_config(cell);
+        let mut replay = watched.clone().filter(|_| replays.may_want(spec));
+        let result = guarded(|| {
+            let recorder = replay.as_mut().map(|r| r as &mut dyn Recorder);
+            finish_trial(observed.fork(), pair, &config, manifold, recorder)
+        });
+        if let Ok(result) = &result {
+            replays.keep(spec, replay.as_ref(), result, manifold);
+        }
+        record(
+            spec,
+            result.unwrap_or_else(|m| errored(scenario, prepared, spec, m)),
+        )
+    });
+    records.collect()
+}
+
+/// The record of trial `spec`.
+fn record(spec: &TrialSpec, result: TrialResult) -> TrialRecord {
+    TrialRecord {
+        cell: spec.cell,
+        trial: spec.trial,
+        result,
+    }
+}
+
+/// What `work` returns, or the message of its error or its panic.
+fn guarded<T>(work: impl FnOnce() -> Result<T>) -> std::result::Result<T, String> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)) {
+        Ok(Ok(value)) => Ok(value),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(panic) => Err(format!("panicked: {}", panic_message(panic.as_ref()))),
+    }
 }
 
 /// Hands the pages the allocator holds free back to the system, after each trial. glibc keeps
@@ -338,22 +432,9 @@ fn guarded_trial(
     spec: &TrialSpec,
     run: &RunOne<'_>,
 ) -> TrialRecord {
-    let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        run(scenario, prepared, spec)
-    }));
-    let result = match attempt {
-        Ok(Ok(result)) => result,
-        Ok(Err(e)) => errored(scenario, prepared, spec, e.to_string()),
-        Err(panic) => {
-            let message = format!("panicked: {}", panic_message(panic.as_ref()));
-            errored(scenario, prepared, spec, message)
-        }
-    };
-    TrialRecord {
-        cell: spec.cell,
-        trial: spec.trial,
-        result,
-    }
+    let result = guarded(|| run(scenario, prepared, spec))
+        .unwrap_or_else(|message| errored(scenario, prepared, spec, message));
+    record(spec, result)
 }
 
 /// The trial `spec` of the campaign.
@@ -434,12 +515,17 @@ pub fn campaign(
     run: &RunOptions,
 ) -> Result<CampaignRun> {
     let replays = ReplayWriter::new(out, options.replays);
-    let outcome = campaign_with(scenario, out, options, run, &|s, p, spec| {
+    let one = |s: &Scenario, p: &Prepared, spec: &TrialSpec| {
         let (pair, robot, manifold) = p.inputs(&s.cells()[spec.cell]);
         replays.record(spec, (pair, robot, manifold), |recorder| {
             run_one_recorded(s, p, spec, recorder)
         })
-    });
+    };
+    let runner = Runner {
+        one: &one,
+        sharing: Some(&replays),
+    };
+    let outcome = campaign_with(scenario, out, options, run, &runner);
     replays.finish(outcome)
 }
 
@@ -448,7 +534,7 @@ pub(crate) fn campaign_with(
     out: &Path,
     options: CampaignOptions,
     run: &RunOptions,
-    run_one: &RunOne<'_>,
+    runner: &Runner<'_>,
 ) -> Result<CampaignRun> {
     let described = CampaignFile::new(scenario, options.shard);
     let is_new = check_folder(out, &described, options.resume)?;
@@ -486,14 +572,7 @@ pub(crate) fn campaign_with(
         run.progress.trial_done();
         Ok(())
     };
-    let ran = stream_trials_with(
-        scenario,
-        &prepared,
-        &pending,
-        run_one,
-        run.progress,
-        &append,
-    );
+    let ran = stream_trials_with(scenario, &prepared, &pending, runner, run.progress, &append);
     run.progress.trials_finished();
     ran?;
     let entries = index_records(&trials_path, false)?;

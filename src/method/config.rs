@@ -39,7 +39,7 @@ pub const MAX_SUCCESS_EPS_M: f64 = 0.03;
 pub const MAX_OFFSET: (f64, f64) = (0.05, std::f64::consts::FRAC_PI_4);
 
 /// Everything a trial does.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrialConfig {
     pub method: Method,
@@ -136,6 +136,33 @@ impl Default for TrialConfig {
 }
 
 impl TrialConfig {
+    /// Whether a trial under `other` runs the same simulation as one under `self` (same seed, pair
+    /// and cell) until its observation ends: the two differ at most in what the later stages read
+    /// (the method, the observations kept, registration, retract, alignment, insertion, the
+    /// success threshold). A field added to `TrialConfig` counts as part of the observation
+    /// until it is listed here. Such trials share one observation in a campaign
+    /// (`method::trial::run_trials_sharing_observation`).
+    pub fn observes_like(&self, other: &TrialConfig) -> bool {
+        let later = TrialConfig {
+            method: self.method,
+            observations: self.observations,
+            retract_m: self.retract_m,
+            align_gains: self.align_gains.clone(),
+            align_s: self.align_s,
+            insert_gains: self.insert_gains.clone(),
+            insert_speed_m_per_s: self.insert_speed_m_per_s,
+            insert_limit_s: self.insert_limit_s,
+            insert_overshoot_m: self.insert_overshoot_m,
+            insert_stop_force_n: self.insert_stop_force_n,
+            insert_seat_force_n: self.insert_seat_force_n,
+            insert_seat_window_m: self.insert_seat_window_m,
+            success_eps_m: self.success_eps_m,
+            registration: self.registration.clone(),
+            ..other.clone()
+        };
+        later == *self
+    }
+
     /// Rejects values a trial cannot run with, naming the field.
     pub fn ensure_valid(&self) -> Result<()> {
         if !(self.t_obs_s >= MIN_T_OBS_S && self.t_obs_s <= MAX_T_OBS_S) {

@@ -13,6 +13,7 @@ use crate::pose::{Iso, Pose6};
 use std::ops::ControlFlow;
 
 /// What the observation recorded.
+#[derive(Clone, Debug, Default)]
 pub struct Observation {
     /// Measured contact poses `base_T_tcp` (m, rad), in recording order.
     pub contacts: Vec<Pose6>,

@@ -104,7 +104,7 @@ pub const DEFAULT_RESTARTS: usize = 8;
 pub const DEFAULT_SIGMA_DEG: f64 = 3.0;
 
 /// Parameters of a registration (in files, fields not given keep their defaults).
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RegistrationConfig {
     pub solver: Solver,

@@ -138,6 +138,22 @@ impl<'a> Session<'a> {
         }
     }
 
+    /// A session that goes on from where an earlier one over the same cell stopped: its fault
+    /// (if the physics faulted) and its phase.
+    pub fn resume(
+        cell: &'a mut Cell,
+        recorder: Option<&'a mut dyn Recorder>,
+        fault: Option<SimFault>,
+        phase: Phase,
+    ) -> Self {
+        Session {
+            cell,
+            recorder,
+            fault,
+            phase,
+        }
+    }
+
     /// The phase the following steps belong to.
     pub fn set_phase(&mut self, phase: Phase) {
         self.phase = phase;

@@ -41,8 +41,58 @@ pub fn run_trial(
     config: &TrialConfig,
     manifold: Option<&Manifold>,
     seed: u64,
-    recorder: Option<&mut dyn Recorder>,
+    mut recorder: Option<&mut dyn Recorder>,
 ) -> Result<TrialResult> {
+    let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
+    let observed = observe_trial(pair, robot, params, config, seed, looking)?;
+    finish_trial(observed, pair, config, manifold, recorder)
+}
+
+/// A trial up to the end of its observation (Fig. 3 "observe"): the cell as the observation
+/// left it, and what registration and insertion start from. Trials that differ only after their
+/// observation ([`TrialConfig::observes_like`]; same seed, pair, robot and cell) run it once
+/// and each goes on from a [`Observed::fork`]: a campaign's direct baseline and its manifold
+/// trials at the same `t_obs` share it.
+pub struct Observed {
+    config: TrialConfig,
+    setup: Setup,
+    cell: Cell,
+    /// The physics fault that stopped the session, if one did.
+    fault: Option<SimFault>,
+    /// The hole frame the robot believes in; `None`: the search found no hole (or faulted), and
+    /// the trial stopped.
+    believed: Option<Iso>,
+    search_s: f64,
+    observation: Observation,
+    /// Wall time so far, s.
+    wall_s: f64,
+}
+
+impl Observed {
+    /// An independent copy, whose trial goes on bit for bit as this one's would ([`Cell::fork`]).
+    pub fn fork(&self) -> Observed {
+        Observed {
+            config: self.config.clone(),
+            setup: self.setup.clone(),
+            cell: self.cell.fork(),
+            fault: self.fault.clone(),
+            believed: self.believed,
+            search_s: self.search_s,
+            observation: self.observation.clone(),
+            wall_s: self.wall_s,
+        }
+    }
+}
+
+/// The first stages of a trial: the set-up, the approach (or search), and the observation.
+pub fn observe_trial(
+    pair: &PartPair,
+    robot: &RobotModel,
+    params: &CellParams,
+    config: &TrialConfig,
+    seed: u64,
+    recorder: Option<&mut dyn Recorder>,
+) -> Result<Observed> {
     config.ensure_valid()?;
     let started = Instant::now();
     let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
@@ -50,22 +100,68 @@ pub fn run_trial(
     // A reborrow for the session's shorter life (the cell is younger than the recorder).
     let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
     let mut session = Session::new(&mut cell, recorder, Phase::Search);
-    let Some(believed) = setup.approach(&mut session, config, pair.clearance_m) else {
-        let fault = session.fault().cloned();
-        return Ok(setup.stopped(pair, config, fault, started));
-    };
+    let believed = setup.approach(&mut session, config, pair.clearance_m);
     let search_s = session.time_s();
-    let perturbation = setup.seeds.perturbation();
-    let observation = observe(
-        &mut session,
-        &believed,
-        config,
-        pair.clearance_m,
-        perturbation,
-    );
+    let observation = match &believed {
+        Some(believed) => {
+            let perturbation = setup.seeds.perturbation();
+            observe(
+                &mut session,
+                believed,
+                config,
+                pair.clearance_m,
+                perturbation,
+            )
+        }
+        None => Observation::default(),
+    };
+    let fault = session.fault().cloned();
+    Ok(Observed {
+        config: config.clone(),
+        setup,
+        cell,
+        fault,
+        believed,
+        search_s,
+        observation,
+        wall_s: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// The last stages of a trial under `config` (which must observe like the one `observed` ran
+/// under): registration for the manifold method (Algorithm 1), insertion, and the score.
+pub fn finish_trial(
+    observed: Observed,
+    pair: &PartPair,
+    config: &TrialConfig,
+    manifold: Option<&Manifold>,
+    recorder: Option<&mut dyn Recorder>,
+) -> Result<TrialResult> {
+    config.ensure_valid()?;
+    if !config.observes_like(&observed.config) {
+        return Err(Error::Input(
+            "a trial can only go on from an observation its own settings would have made".into(),
+        ));
+    }
+    let started = Instant::now();
+    let Observed {
+        setup,
+        mut cell,
+        fault,
+        believed,
+        search_s,
+        observation,
+        wall_s,
+        ..
+    } = observed;
+    let wall_s = || wall_s + started.elapsed().as_secs_f64();
+    let Some(believed) = believed else {
+        return Ok(setup.stopped(pair, config, fault, wall_s()));
+    };
     let observations = observation.downsampled(config.observations);
-    let dt = session.dt_s();
-    let mut stages = Stages::new(search_s, observation, observations.len(), dt);
+    let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
+    let mut session = Session::resume(&mut cell, recorder, fault, Phase::Observe);
+    let mut stages = Stages::new(search_s, observation, observations.len(), session.dt_s());
     if session.fault().is_none() {
         (stages.estimate, stages.register_wall_s) =
             estimate_hole(manifold, &observations, &believed, config, &setup.seeds)?;
@@ -81,7 +177,7 @@ pub fn run_trial(
     }
     let fault = session.fault().cloned();
     let final_tcp = cell.truth().tcp_pose();
-    Ok(setup.score(pair, config, stages, fault, &final_tcp, started))
+    Ok(setup.score(pair, config, stages, fault, &final_tcp, wall_s()))
 }
 
 /// Per-axis errors of the estimate, mm and deg (estimate against truth, in the true hole frame).
@@ -161,6 +257,7 @@ pub struct TrialResult {
 /// The experiment as the experimenters set it up (paper V-A): the nominal hole pose the robot is
 /// told, the true pose (nominal plus a random offset drawn from the trial seed), and the seeds.
 /// The Gymnasium environment (`method::env`) sets its episodes up through it too.
+#[derive(Clone)]
 pub(crate) struct Setup {
     pub(crate) nominal: Iso,
     pub(crate) offset: Pose6,
@@ -245,7 +342,7 @@ impl Setup {
         pair: &PartPair,
         config: &TrialConfig,
         fault: Option<SimFault>,
-        started: Instant,
+        wall_s: f64,
     ) -> TrialResult {
         let why = match fault {
             Some(_) => "the physics faulted during the search",
@@ -253,7 +350,7 @@ impl Setup {
         };
         TrialResult {
             stopped: Some(why.into()),
-            ..self.common(pair, config, fault, started)
+            ..self.common(pair, config, fault, wall_s)
         }
     }
 
@@ -263,7 +360,7 @@ impl Setup {
         pair: &PartPair,
         config: &TrialConfig,
         fault: Option<SimFault>,
-        started: Instant,
+        wall_s: f64,
     ) -> TrialResult {
         TrialResult {
             seed: self.seeds.trial,
@@ -288,7 +385,7 @@ impl Setup {
             insert_fz_n: Vec::new(),
             insert_end: None,
             times: PhaseTimes::default(),
-            wall_s: started.elapsed().as_secs_f64(),
+            wall_s,
         }
     }
 
@@ -301,7 +398,7 @@ impl Setup {
         stages: Stages,
         fault: Option<SimFault>,
         final_tcp: &Iso,
-        started: Instant,
+        wall_s: f64,
     ) -> TrialResult {
         let final_depth = -(self.truth.inverse() * final_tcp).translation.z;
         let success =
@@ -326,7 +423,7 @@ impl Setup {
             insert_fz_n: fz_profile(fz, stages.dt_s),
             insert_end: (!fz.is_empty()).then_some(stages.insertion.end),
             times: stages.times(),
-            ..self.common(pair, config, fault, started)
+            ..self.common(pair, config, fault, wall_s)
         }
     }
 }
@@ -344,7 +441,7 @@ pub fn errored_trial(
     TrialResult {
         outcome: "error".into(),
         error_message: Some(message),
-        ..setup.common(pair, config, None, Instant::now())
+        ..setup.common(pair, config, None, 0.0)
     }
 }
 

@@ -65,6 +65,7 @@ pub struct RegistrationRecord {
 }
 
 /// A trial being recorded for replay.
+#[derive(Clone)]
 pub struct Replay {
     scene: scene::Scene,
     frames: Vec<Frame>,

@@ -16,8 +16,8 @@ use crate::twin::physics::joint_contacts::{self, ContactSolve};
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::physics::projection;
 use crate::twin::physics::{
-    ArmContacts, PhysicsParams, add_fixed, compound_collider, contact_wrench, max_point_speed,
-    set_prediction_for_speed, v64,
+    ArmContacts, PhysicsParams, add_fixed, compound_collider, contact_wrench, fork_world,
+    max_point_speed, set_prediction_for_speed, v64,
 };
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::robot::{Dynamics, Inertial, Iso, RobotModel, Tool};
@@ -53,7 +53,7 @@ pub const ARM_MIN_PREDICTION_M: f64 = 10e-6;
 pub const ARM_PREDICTION_RULE: &str = "1.5 x (speed + torque lookahead) x dt, 10 um floor";
 
 /// Cell layout and the parameters of everything in it.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CellParams {
     #[serde(skip)]
@@ -321,6 +321,39 @@ const RUNAWAY_FACTOR: f64 = 3.0;
 pub const SATURATION_WINDOW_S: f64 = 0.1;
 
 impl Cell {
+    /// An independent copy of the cell that steps on bit for bit as this one would
+    /// ([`fork_world`]): two trials whose first stages are the same simulation run them once and
+    /// branch here.
+    pub fn fork(&self) -> Cell {
+        Cell {
+            world: fork_world(&self.world),
+            arm: self.arm.clone(),
+            model: self.model.clone(),
+            controller: self.controller.clone(),
+            sensors: self.sensors.clone(),
+            base_t_hole: self.base_t_hole,
+            peg: self.peg,
+            peg_reach_m: self.peg_reach_m,
+            steps_per_cycle: self.steps_per_cycle,
+            steps: self.steps,
+            dt_s: self.dt_s,
+            tau: self.tau.clone(),
+            tau_link: self.tau_link.clone(),
+            qd: self.qd.clone(),
+            accel_ahead: self.accel_ahead,
+            disturbance: self.disturbance,
+            tcp_measured: self.tcp_measured,
+            probe: self.probe.clone(),
+            penetration_fault_m: self.penetration_fault_m,
+            saturated_at_s: self.saturated_at_s.clone(),
+            energy: self.energy.clone(),
+            position_projection: self.position_projection,
+            joint_space_contacts: self.joint_space_contacts,
+            peg_contacts: self.peg_contacts.clone(),
+            friction: self.friction,
+        }
+    }
+
     /// Builds the cell with the arm at rest at `start_tcp` (base frame) under Cartesian impedance
     /// with `gains`; `base_t_hole: None` leaves the fixture out.
     pub fn new(
@@ -778,6 +811,7 @@ fn add_table(world: &mut PhysicsWorld) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pose::Pose6;
     use crate::twin::geometry::{build_builtin, builtin_by_name};
     use crate::twin::robot::urdf::iiwa14;
 
@@ -826,5 +860,64 @@ mod tests {
             speed_only_short > 0,
             "the throw should outrun the speed alone"
         );
+    }
+
+    /// A cell forked while the peg presses into the walls of its hole steps on bit for bit as
+    /// the original: the fork's new pipeline holds nothing the step needs, and the contacts'
+    /// warm starts, the controller, the sensors' noise and the energy account travel with it.
+    #[test]
+    fn a_forked_cell_steps_on_as_the_original() {
+        let pair = build_builtin(builtin_by_name("cross").expect("cross"), 0.5e-3).expect("pair");
+        let params = CellParams::default();
+        let nominal = nominal_hole_pose(&pair, &params);
+        let truth = nominal * Iso::translation(1e-3, -0.5e-3, 0.0);
+        let start = tcp_in_hole(&truth, 3e-3);
+        let gains = ImpedanceGains::uniform(1000.0, 20.0, 0.7);
+        let new_cell = || {
+            Cell::new(
+                &pair,
+                iiwa14().expect("iiwa"),
+                &params,
+                Some(truth),
+                &start,
+                gains.clone(),
+                7,
+            )
+            .expect("cell")
+        };
+        let mut original = new_cell();
+        let push = |cell: &mut Cell, k: usize| {
+            let wobble = Iso::rotation(Vector3::new(0.0, 0.02 * (k as f64 * 0.01).sin(), 0.0));
+            cell.command_pose(tcp_in_hole(&nominal, 6e-3) * wobble);
+        };
+        for k in 0..400 {
+            push(&mut original, k);
+            original.step();
+        }
+        assert!(
+            original.truth().solver_contacts() > 0,
+            "the peg should touch the walls"
+        );
+        let mut fork = original.fork();
+        let mut contact_steps = 0;
+        for k in 400..800 {
+            push(&mut original, k);
+            push(&mut fork, k);
+            original.step();
+            fork.step();
+            contact_steps += usize::from(original.truth().solver_contacts() > 0);
+            let bits = |c: &Cell| {
+                let m = c.measurements();
+                (
+                    c.truth().q(),
+                    Pose6::from_iso(&m.tcp).0,
+                    m.wrench,
+                    c.torques().clone(),
+                )
+            };
+            assert_eq!(bits(&original), bits(&fork), "step {k}");
+        }
+        assert!(contact_steps > 100, "{contact_steps} steps in contact");
+        assert!(original.fault().is_none());
     }
 }

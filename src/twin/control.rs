@@ -197,7 +197,7 @@ pub enum Mode {
 }
 
 /// Controller settings that do not change with the mode.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ControllerParams {
     /// Control rate, Hz (the physics step must divide the control period).
@@ -222,6 +222,7 @@ impl Default for ControllerParams {
 }
 
 /// The controller of one arm: a mode, its target, the null-space reference, the last torque.
+#[derive(Clone)]
 pub struct Controller {
     pub params: ControllerParams,
     mode: Mode,
@@ -328,6 +329,7 @@ impl Controller {
 
 /// Bumpless transfer across a mode switch: the old mode's last task torque minus the new mode's
 /// first, faded linearly to zero.
+#[derive(Clone)]
 enum Blend {
     /// No switch in progress.
     Idle,

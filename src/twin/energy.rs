@@ -114,6 +114,7 @@ pub struct StepEnergy {
 }
 
 /// The last [`WINDOW_S`] of the account, one entry per step.
+#[derive(Clone)]
 pub struct EnergyLedger {
     /// Never empty: it opens with the start.
     entries: VecDeque<Totals>,

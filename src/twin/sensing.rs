@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 
 /// Sensor and estimator parameters.
 /// In files, fields not given keep their defaults.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorParams {
     /// Encoder resolution, rad (default 2 pi / 2^20, a 20-bit absolute encoder; assumption).
@@ -121,6 +121,7 @@ impl SensorParams {
 pub type Wrench6 = Vector6<f64>;
 
 /// The robot's sensors and estimator state.
+#[derive(Clone)]
 pub struct Sensors {
     pub params: SensorParams,
     rng: ChaCha8Rng,

@@ -15,6 +15,7 @@ use nalgebra::{Point3, UnitQuaternion, Vector3};
 use rapier3d::prelude::*;
 
 /// The arm inside a [`PhysicsWorld`].
+#[derive(Clone)]
 pub struct Arm {
     /// `world_T_base`.
     pub world_t_base: Iso,

@@ -174,6 +174,29 @@ impl PhysicsParams {
     }
 }
 
+/// A copy of `world` that steps on exactly as `world` would: every body, collider, joint and
+/// contact (with its warm-start impulses) is cloned, and the copy gets a new pipeline. rapier's
+/// `PhysicsPipeline` holds only workspaces that each step refills, and cannot be cloned
+/// (`method::trial::run_trials_sharing_observation` forks a cell through this; the test
+/// `a_forked_cell_steps_on_as_the_original` checks it bit for bit).
+pub fn fork_world(world: &PhysicsWorld) -> PhysicsWorld {
+    PhysicsWorld {
+        gravity: world.gravity,
+        integration_parameters: world.integration_parameters,
+        physics_pipeline: PhysicsPipeline::new(),
+        collision_pipeline: CollisionPipeline::new(),
+        islands: world.islands.clone(),
+        broad_phase: world.broad_phase.clone(),
+        narrow_phase: world.narrow_phase.clone(),
+        bodies: world.bodies.clone(),
+        colliders: world.colliders.clone(),
+        impulse_joints: world.impulse_joints.clone(),
+        multibody_joints: world.multibody_joints.clone(),
+        soft_bodies: world.soft_bodies.clone(),
+        ccd_solver: world.ccd_solver.clone(),
+    }
+}
+
 /// Sets the world's contact prediction distance for the coming step: at least `floor_m`
 /// (metres; [`MIN_PREDICTION_M`] for the free peg), and 1.5 times the distance a point moving at
 /// `max_point_speed` (m/s) covers in one step, so that a fast peg still meets a rim it drops

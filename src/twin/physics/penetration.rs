@@ -10,6 +10,7 @@ use rapier3d::parry::math::Vector;
 use rapier3d::parry::partitioning::{Bvh, BvhBuildStrategy};
 
 /// A convex piece's vertices, face normals and edge directions placed in the world.
+#[derive(Clone)]
 struct Posed {
     vertices: Vec<P3>,
     face_normals: Vec<Vector3<f64>>,
@@ -128,6 +129,7 @@ pub struct GapRow {
 }
 
 /// Precomputed pieces and bounds of a fixed solid, for repeated penetration queries.
+#[derive(Clone)]
 pub struct PenetrationProbe {
     fixed: Vec<Posed>,
     /// The fixed pieces' bounds (f32, loosened by `TREE_SLACK_M`), to find the pieces near a
