@@ -46,7 +46,20 @@ pub fn share_observations(scenario: &Scenario, trials: &[TrialSpec]) -> Vec<Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::campaign::run::all_trials;
+    use crate::method::seeds;
+
+    /// Every trial of `s`, cell-major, seeded as a campaign seeds them.
+    fn all_trials(s: &Scenario) -> Vec<TrialSpec> {
+        let cells = s.cells();
+        let specs = cells.iter().enumerate().flat_map(|(c, cell)| {
+            (0..s.trials).map(move |t| TrialSpec {
+                cell: c,
+                trial: t,
+                seed: seeds::trial(s.seed, &cell.geometry, cell.clearance_mm, t),
+            })
+        });
+        specs.collect()
+    }
 
     fn scenario(extra: &str) -> Scenario {
         Scenario::parse(&format!(
