@@ -308,7 +308,8 @@ pub(crate) struct Runner<'a> {
 
 /// Runs `trials` in parallel and hands each record to `on_done` as it finishes (from any thread),
 /// keeping none: memory stays flat however many trials a campaign runs. Trials that observe
-/// alike run their observation once ([`run_shared`]).
+/// alike run their observation once ([`run_shared`]). A stop asked for through `progress` is
+/// seen before each trial.
 fn stream_trials_with(
     scenario: &Scenario,
     prepared: &Prepared,
@@ -322,36 +323,47 @@ fn stream_trials_with(
         None => trials.iter().map(|t| vec![*t]).collect(),
     };
     pieces.par_iter().try_for_each(|piece| {
-        if progress.should_stop() {
-            return Err(Error::Stopped(
-                "the campaign was stopped; the trials that finished are kept (resume it to \
-                 complete it)"
-                    .into(),
-            ));
-        }
-        let records = match runner.sharing {
-            Some(replays) if piece.len() > 1 => run_shared(scenario, prepared, piece, replays),
-            _ => piece
-                .iter()
-                .map(|spec| guarded_trial(scenario, prepared, spec, runner.one))
-                .collect(),
+        let ran = match runner.sharing {
+            Some(replays) if piece.len() > 1 => {
+                run_shared(scenario, prepared, piece, replays, progress, on_done)
+            }
+            _ => piece.iter().try_for_each(|spec| {
+                go_on(progress)?;
+                on_done(&guarded_trial(scenario, prepared, spec, runner.one))
+            }),
         };
         release_freed_memory();
-        records.iter().try_for_each(on_done)
+        ran
     })
 }
 
-/// The records of trials that observe alike ([`share_observations`]): the first one's
-/// observation runs once, and each trial goes on from a fork of it (and of its replay's
-/// recording), so that its record and its replay are the ones it gives alone, bit for bit. An
-/// error or a panic in the observation is every trial's, as it would be alone; one after it is
-/// its own trial's.
+/// `Err(Stopped)` once a stop has been asked for: the trials that finished are kept.
+fn go_on(progress: &dyn CampaignProgress) -> Result<()> {
+    if progress.should_stop() {
+        return Err(Error::Stopped(
+            "the campaign was stopped; the trials that finished are kept (resume it to complete \
+             it)"
+            .into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Trials that observe alike ([`share_observations`]), each record handed to `on_done` as it
+/// finishes: the first one's observation runs once, and each trial goes on from a fork of it
+/// (and of its replay's recording), so that its record and its replay are the ones it gives
+/// alone, bit for bit. An error or a panic in the observation is every trial's, as it would be
+/// alone; one after it is its own trial's. A stop is seen before each trial; a trial not run then
+/// runs alone when the campaign is resumed.
 fn run_shared(
     scenario: &Scenario,
     prepared: &Prepared,
     trials: &[TrialSpec],
     replays: &ReplayWriter,
-) -> Vec<TrialRecord> {
+    progress: &dyn CampaignProgress,
+    on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
+) -> Result<()> {
+    go_on(progress)?;
     let cells = scenario.cells();
     let first = &trials[0];
     let (pair, robot, _) = prepared.inputs(&cells[first.cell]);
@@ -368,13 +380,18 @@ fn run_shared(
     let observed = match observed {
         Ok(observed) => observed,
         Err(message) => {
-            return trials
-                .iter()
-                .map(|spec| record(spec, errored(scenario, prepared, spec, message.clone())))
-                .collect();
+            return trials.iter().try_for_each(|spec| {
+                on_done(&record(
+                    spec,
+                    errored(scenario, prepared, spec, message.clone()),
+                ))
+            });
         }
     };
-    let records = trials.iter().map(|spec| {
+    trials.iter().enumerate().try_for_each(|(i, spec)| {
+        if i > 0 {
+            go_on(progress)?;
+        }
         let cell = &cells[spec.cell];
         let (_, _, manifold) = prepared.inputs(cell);
         let config = scenario.trial_config(cell);
@@ -386,12 +403,9 @@ fn run_shared(
         if let Ok(result) = &result {
             replays.keep(spec, replay.as_ref(), result, manifold);
         }
-        record(
-            spec,
-            result.unwrap_or_else(|m| errored(scenario, prepared, spec, m)),
-        )
-    });
-    records.collect()
+        let result = result.unwrap_or_else(|m| errored(scenario, prepared, spec, m));
+        on_done(&record(spec, result))
+    })
 }
 
 /// The record of trial `spec`.
