@@ -141,7 +141,7 @@ impl TrialConfig {
     /// (the method, the observations kept, registration, retract, alignment, insertion, the
     /// success threshold). A field added to `TrialConfig` counts as part of the observation
     /// until it is listed here. Such trials share one observation in a campaign
-    /// (`method::trial::run_trials_sharing_observation`).
+    /// (`campaign::sharing`, `method::trial::Observed::fork`).
     pub fn observes_like(&self, other: &TrialConfig) -> bool {
         let later = TrialConfig {
             method: self.method,

@@ -177,8 +177,8 @@ impl PhysicsParams {
 /// A copy of `world` that steps on exactly as `world` would: every body, collider, joint and
 /// contact (with its warm-start impulses) is cloned, and the copy gets a new pipeline. rapier's
 /// `PhysicsPipeline` holds only workspaces that each step refills, and cannot be cloned
-/// (`method::trial::run_trials_sharing_observation` forks a cell through this; the test
-/// `a_forked_cell_steps_on_as_the_original` checks it bit for bit).
+/// (`Cell::fork` forks a cell through this, for the trials of a campaign that share their
+/// observation; the test `a_forked_cell_steps_on_as_the_original` checks it bit for bit).
 pub fn fork_world(world: &PhysicsWorld) -> PhysicsWorld {
     PhysicsWorld {
         gravity: world.gravity,
