@@ -13,7 +13,7 @@ use std::collections::HashMap;
 /// `trials`, in their order, gathered into the pieces of work a campaign runs: each piece is
 /// one trial, or the trials that observe alike. Trials observe alike when they have the same
 /// seed, pair and cell parameters, and trial settings that differ only after the observation
-/// (`TrialConfig::observes_like`). A trial whose settings a trial rejects runs alone (its error
+/// (`TrialConfig::observes_like`). A trial whose settings are invalid runs alone (its error
 /// is its own).
 pub fn share_observations(scenario: &Scenario, trials: &[TrialSpec]) -> Vec<Vec<TrialSpec>> {
     let cells = scenario.cells();

@@ -130,12 +130,7 @@ pub struct Session<'a> {
 
 impl<'a> Session<'a> {
     pub fn new(cell: &'a mut Cell, recorder: Option<&'a mut dyn Recorder>, phase: Phase) -> Self {
-        Session {
-            cell,
-            recorder,
-            fault: None,
-            phase,
-        }
+        Session::resume(cell, recorder, None, phase)
     }
 
     /// A session that goes on from where an earlier one over the same cell stopped: its fault
