@@ -299,6 +299,10 @@ impl SatPiece {
     }
 }
 
+/// The stride of the vectorised crossing test (two vectors of four f32, as the compiler unrolls
+/// it): the arcs are padded to a multiple, so that none is left to the scalar remainder loop.
+const ARC_LANES: usize = 8;
+
 /// Buffers reused across calls (one set per thread), so that a full test allocates nothing.
 #[derive(Default)]
 struct Scratch {
@@ -356,8 +360,19 @@ impl GaussArcs {
                 self.cross[k].push(x[k]);
             }
         }
+        // Padding arcs (all zero) cross nothing; the crossing test then runs in whole vectors.
+        let padded = sb.edges.len().next_multiple_of(ARC_LANES);
+        for v in self
+            .n1
+            .iter_mut()
+            .chain(&mut self.n2)
+            .chain(&mut self.cross)
+        {
+            v.resize(padded, 0.0);
+        }
     }
 
+    /// Arcs held, the padding included.
     fn len(&self) -> usize {
         self.n1[0].len()
     }
