@@ -463,7 +463,7 @@ fn correspondences(
             let delta = metric.scaled(&Pose6::from_iso(&relative));
             // Line 8: the k nearest observations.
             let (mut neighbours, fresh, miss) = if renew {
-                let c = index().cache(s, m, None);
+                let c = index().cache(s, m, None, None);
                 (c.candidates()[..k].to_vec(), Some(c), false)
             } else {
                 match nb_cache

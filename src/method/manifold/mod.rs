@@ -96,11 +96,27 @@ impl ScaledIndex {
     }
 
     /// A cache of the `m` nearest points to `q`; `ids` maps this index's items to the indices
-    /// the cache should hold (identity when `None`).
-    pub fn cache(&self, q: &[f64; 6], m: NonZero<usize>, ids: Option<&[usize]>) -> NeighbourCache {
-        let found = self
-            .tree
-            .nearest_n::<SquaredEuclidean>(&rotate(&self.rotation, q), m);
+    /// the cache should hold (identity when `None`). `within`, when known, bounds the distance of
+    /// the `m`-th nearest point from above (scaled units): the search then skips the subtrees
+    /// beyond it from the start, and finds the same points (it searches again unbounded if the
+    /// bound proves short, so a wrong bound costs time, never an answer).
+    pub fn cache(
+        &self,
+        q: &[f64; 6],
+        m: NonZero<usize>,
+        ids: Option<&[usize]>,
+        within: Option<f64>,
+    ) -> NeighbourCache {
+        let rotated = rotate(&self.rotation, q);
+        let found = within
+            .map(|r| {
+                // Wide of the rounding of the rotated coordinates (relative 1e-15).
+                let reach = r * (1.0 + 1e-9) + 1e-12;
+                self.tree
+                    .nearest_n_within::<SquaredEuclidean>(&rotated, reach * reach, m, true)
+            })
+            .filter(|found| found.len() == m.get())
+            .unwrap_or_else(|| self.tree.nearest_n::<SquaredEuclidean>(&rotated, m));
         let radius = found.last().map_or(0.0, |n| n.distance.sqrt());
         // A cache that holds every point is exact whatever the motion.
         let radius = if found.len() < m.get() {
@@ -148,6 +164,15 @@ impl NeighbourCache {
     /// How far `q` is from the query the cache was made for.
     pub fn moved(&self, q: &[f64; 6]) -> f64 {
         squared_distance(q, &self.query).sqrt()
+    }
+
+    /// The distance from `q` of the farthest cached point (indices into `points`).
+    pub fn farthest(&self, points: &[[f64; 6]], q: &[f64; 6]) -> f64 {
+        self.candidates
+            .iter()
+            .map(|&i| squared_distance(q, &points[i]))
+            .fold(0.0, f64::max)
+            .sqrt()
     }
 
     /// The cached points, nearest to the cached query first.
@@ -446,9 +471,27 @@ impl Manifold {
         {
             return hit[0];
         }
+        // The old cache's points are still there: the farthest of them from `q` bounds the new
+        // search (where the old cache was as large as the new one will be).
+        let farthest = |m: NonZero<usize>| {
+            cache
+                .as_ref()
+                .filter(|c| c.candidates.len() >= m.get())
+                .map(|c| c.farthest(&self.scaled, q))
+        };
         let fresh = match (resolution, &self.coarse) {
-            (Resolution::Coarse, Some(c)) => c.index.cache(q, COARSE_CACHE_SIZE, Some(&c.ids)),
-            _ => self.index.cache(q, REFERENCE_CACHE_SIZE, None),
+            (Resolution::Coarse, Some(c)) => c.index.cache(
+                q,
+                COARSE_CACHE_SIZE,
+                Some(&c.ids),
+                farthest(COARSE_CACHE_SIZE),
+            ),
+            _ => self.index.cache(
+                q,
+                REFERENCE_CACHE_SIZE,
+                None,
+                farthest(REFERENCE_CACHE_SIZE),
+            ),
         };
         let nearest = fresh.candidates[0];
         *cache = Some(fresh);
@@ -563,6 +606,44 @@ mod tests {
         let n = neighbourhood_normal(pts.iter());
         let s = std::f64::consts::FRAC_1_SQRT_2;
         assert!((n[0] - s).abs() < 1e-9 && (n[1] - s).abs() < 1e-9, "{n:?}");
+    }
+
+    #[test]
+    fn a_bounded_cache_search_finds_what_the_unbounded_one_finds() {
+        let pts: Vec<[f64; 6]> = (0..3000)
+            .map(|i| {
+                let t = i as f64;
+                [
+                    0.2 * (t * 0.731).sin(),
+                    0.2 * (t * 0.377).cos(),
+                    10.0 * (t * 0.0113).sin(),
+                    2.0 * (t * 0.517).sin(),
+                    2.0 * (t * 0.291).cos(),
+                    (t * 0.173).sin(),
+                ]
+            })
+            .collect();
+        let index = ScaledIndex::new(&pts);
+        let m = NonZero::new(16).expect("16");
+        for q in pts.iter().step_by(97) {
+            let moved = [
+                q[0] + 0.02,
+                q[1] - 0.01,
+                q[2] + 0.3,
+                q[3],
+                q[4] - 0.05,
+                q[5],
+            ];
+            let old = index.cache(q, m, None, None);
+            let plain = index.cache(&moved, m, None, None);
+            // The old cache's farthest point bounds the new search; a bound too short to hold
+            // `m` points falls back to the unbounded search.
+            for within in [old.farthest(&pts, &moved), 0.5 * plain.radius] {
+                let bounded = index.cache(&moved, m, None, Some(within));
+                assert_eq!(bounded.candidates(), plain.candidates());
+                assert_eq!(bounded.radius.to_bits(), plain.radius.to_bits());
+            }
+        }
     }
 
     #[test]
