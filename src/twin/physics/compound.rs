@@ -22,7 +22,7 @@
 //! Everything runs in a fixed order (candidates sorted by piece indices), so results do not
 //! depend on anything but the inputs.
 
-use super::sat::{SatPiece, sat_manifold};
+use super::sat::{SatPiece, TurnedPieces, sat_manifold};
 use rapier3d::parry::bounding_volume::{Aabb, BoundingVolume};
 use rapier3d::parry::math::{Pose, Real, Rotation, Vector};
 use rapier3d::parry::query::details::{TypedWorkspaceData, WorkspaceData};
@@ -126,6 +126,8 @@ struct Workspace<M, C> {
     /// Per leaf of each body, what is kept of it once known.
     leaves1: Vec<Option<Leaf>>,
     leaves2: Vec<Option<Leaf>>,
+    /// Pieces of body 2 turned into the frames of body 1's pieces, by leaf.
+    turned: TurnedPieces,
 }
 
 /// What is kept of a piece of a compound.
@@ -147,6 +149,7 @@ impl<M, C> Default for Workspace<M, C> {
             lent: Vec::new(),
             leaves1: Vec::new(),
             leaves2: Vec::new(),
+            turned: TurnedPieces::default(),
         }
     }
 }
@@ -213,7 +216,8 @@ pub fn compound_manifolds<M, C>(
             sat_of(&ws.leaves1, slot.leaf1),
             sat_of(&ws.leaves2, slot.leaf2),
         );
-        slot.gap = piece_pair(&pos21, (c1, c2), pieces, slot, prediction).unwrap_or(0.0);
+        slot.gap =
+            piece_pair(&pos21, (c1, c2), pieces, slot, prediction, &mut ws.turned).unwrap_or(0.0);
         slot.checked = odometer;
     }
     ws.lend(manifolds);
@@ -228,6 +232,7 @@ fn piece_pair<M, C>(
     pieces: (Option<&SatPiece>, Option<&SatPiece>),
     slot: &mut Slot<M, C>,
     prediction: Real,
+    turned: &mut TurnedPieces,
 ) -> Option<Real>
 where
     M: Default + Clone,
@@ -243,7 +248,8 @@ where
             let polyhedra = (shape1.as_convex_polyhedron(), shape2.as_convex_polyhedron());
             gap = match (polyhedra, pieces) {
                 ((Some(a), Some(b)), (Some(sa), Some(sb))) => {
-                    sat_manifold(&pos, (a, sa), (b, sb), prediction, manifold)
+                    let b = (b, sb, slot.leaf2);
+                    sat_manifold(&pos, (a, sa), b, prediction, manifold, turned)
                 }
                 _ => {
                     let _ = DefaultQueryDispatcher.contact_manifold_convex_convex(

@@ -3,7 +3,7 @@
 //! candidate list of [`super::compound`], and rapier's defaults for every other shape.
 
 use super::compound::compound_manifolds;
-use super::sat::{SatPiece, sat_manifold};
+use super::sat::{SatPiece, TurnedPieces, sat_manifold};
 use rapier3d::parry::math::{Pose, Real, Vector};
 use rapier3d::parry::query::details::{NormalConstraints, contact_manifolds_composite_shape_shape};
 use rapier3d::parry::query::{
@@ -160,7 +160,15 @@ where
         match (g1.as_convex_polyhedron(), g2.as_convex_polyhedron()) {
             (Some(a), Some(b)) => {
                 let (sa, sb) = (SatPiece::new(a), SatPiece::new(b));
-                sat_manifold(pos12, (a, &sa), (b, &sb), prediction, manifold);
+                let mut turned = TurnedPieces::default();
+                sat_manifold(
+                    pos12,
+                    (a, &sa),
+                    (b, &sb, 0),
+                    prediction,
+                    manifold,
+                    &mut turned,
+                );
                 Ok(())
             }
             _ => DefaultQueryDispatcher.contact_manifold_convex_convex(

@@ -11,7 +11,7 @@
 //! closest points of the two edges. The last axis is cached in the manifold so that a separated
 //! pair costs two support scans.
 
-use rapier3d::parry::math::{Pose, Real, Vector};
+use rapier3d::parry::math::{Pose, Real, Rotation, Vector};
 use rapier3d::parry::query::{ContactManifold, TrackedContact};
 use rapier3d::parry::shape::{ConvexPolyhedron, PackedFeatureId};
 
@@ -51,15 +51,16 @@ const COHERENCE_DIST_SQ: Real = 1e-12;
 const EDGE_TOLERANCE: Real = 1e-7;
 
 /// The SAT manifold of two pieces (`pos12` places `b` in `a`'s frame; `sa`, `sb` are their
-/// [`SatPiece`]s). Returns `Some(gap)` when the pieces are apart by more than `prediction`: `gap`
+/// [`SatPiece`]s; `b_id` names `b` among the pieces whose turned copies `turned` keeps). Returns `Some(gap)` when the pieces are apart by more than `prediction`: `gap`
 /// (metres) is a lower bound on their distance, the separation along the axis that proved it (the
 /// manifold is then empty).
 pub(crate) fn sat_manifold<M, C: Default + Copy>(
     pos12: &Pose,
     (a, sa): (&ConvexPolyhedron, &SatPiece),
-    (b, sb): (&ConvexPolyhedron, &SatPiece),
+    (b, sb, b_id): (&ConvexPolyhedron, &SatPiece, u32),
     prediction: Real,
     manifold: &mut ContactManifold<M, C>,
+    turned: &mut TurnedPieces,
 ) -> Option<Real> {
     // A pair at rest keeps its contact points: only their separations are refreshed, while no
     // point has slid by more than a micrometre and the normal has turned by less than 0.1 deg.
@@ -75,8 +76,9 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
             return Some(gap);
         }
     }
-    let best =
-        SCRATCH.with_borrow_mut(|scratch| best_axis(pos12, (a, sa), (b, sb), prediction, scratch));
+    let b_turned = turned.find_or_turn(b, sb, b_id, &pos12.rotation);
+    let best = SCRATCH
+        .with_borrow_mut(|scratch| best_axis(pos12, (a, sa), sb, b_turned, prediction, scratch));
     let (_, axis, n1) = match best {
         Ok(best) => best,
         Err((separating, gap)) => {
@@ -104,16 +106,16 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
 fn best_axis(
     pos12: &Pose,
     (a, sa): (&ConvexPolyhedron, &SatPiece),
-    (b, sb): (&ConvexPolyhedron, &SatPiece),
+    sb: &SatPiece,
+    b_turned: &Turned,
     prediction: Real,
     scratch: &mut Scratch,
 ) -> Result<(Real, Axis, Vector), (Vector, Real)> {
-    // B in A's frame, once.
-    let Scratch { pb, nb, .. } = scratch;
+    // B in A's frame: turned (maybe by an earlier pair), then moved, as `pos12 * p` does.
+    let Scratch { pb, crosses } = scratch;
     pb.clear();
-    pb.extend(b.points().iter().map(|&p| *pos12 * p));
-    nb.clear();
-    nb.extend(b.faces().iter().map(|f| pos12.rotation * f.normal));
+    pb.extend(b_turned.points.iter().map(|&p| p + pos12.translation));
+    let nb = &b_turned.normals;
     let pa = a.points();
 
     // Face normals of A: separation = min over B along n minus A's face plane.
@@ -141,29 +143,23 @@ fn best_axis(
         }
     }
     // Edge pairs that make a face of the Minkowski difference.
-    edge_stage((a, sa), (b, sb), pos12, prediction, best, scratch)
+    let arcs = &b_turned.arcs;
+    edge_stage((a, sa), sb, (pb, arcs), prediction, best, crosses)
 }
 
 /// The best axis after the face axes `best`, among edge pairs of A and B that make a face of the
 /// Minkowski difference; `Err((axis, gap))` as soon as one separates the pieces by more than
-/// `prediction`. `scratch` holds B's points and face normals in A's frame.
+/// `prediction`. `pb` and `arcs` are B's points and Gauss arcs in A's frame.
 fn edge_stage(
     (a, sa): (&ConvexPolyhedron, &SatPiece),
-    (b, sb): (&ConvexPolyhedron, &SatPiece),
-    pos12: &Pose,
+    sb: &SatPiece,
+    (pb, arcs): (&[Vector], &GaussArcs),
     prediction: Real,
     mut best: (Real, Axis, Vector),
-    scratch: &mut Scratch,
+    crosses: &mut Vec<bool>,
 ) -> Result<(Real, Axis, Vector), (Vector, Real)> {
     let pa = a.points();
     let face_limit = best.0;
-    let Scratch {
-        arcs,
-        crosses,
-        pb,
-        nb,
-    } = scratch;
-    arcs.fill(b, sb, nb, pos12);
     crosses.clear();
     crosses.resize(arcs.len(), false);
     for ea in &sa.edges {
@@ -306,11 +302,71 @@ const ARC_LANES: usize = 8;
 /// Buffers reused across calls (one set per thread), so that a full test allocates nothing.
 #[derive(Default)]
 struct Scratch {
-    arcs: GaussArcs,
     crosses: Vec<bool>,
-    /// B's points and face normals in A's frame.
+    /// B's points in A's frame.
     pb: Vec<Vector>,
-    nb: Vec<Vector>,
+}
+
+/// Pieces turned into the frame of the pieces they are tested against: their vertices, face
+/// normals and Gauss arcs, which depend on the relative rotation only. A compound's pieces are
+/// placed by translation alone, so its piece pairs share that rotation at each step, and a piece of
+/// the second body meets several pieces of the first: the last [`TURNED_KEPT`] turned are kept
+/// and found again by the piece's id and the rotation's bits. The same operations as turning it
+/// anew, so the same values to the bit.
+#[derive(Clone, Default)]
+pub(crate) struct TurnedPieces {
+    ring: Vec<Turned>,
+    next: usize,
+}
+
+/// Turned pieces kept (a piece of the second body meets its neighbours on the first one in
+/// consecutive pairs).
+const TURNED_KEPT: usize = 16;
+
+/// One piece turned by one rotation.
+#[derive(Clone, Default)]
+struct Turned {
+    id: u32,
+    rotation: [u32; 4],
+    /// The rotation times each vertex and each face normal.
+    points: Vec<Vector>,
+    normals: Vec<Vector>,
+    arcs: GaussArcs,
+}
+
+impl TurnedPieces {
+    /// `b` (its id `id`) turned by `rotation`: found, or turned into the oldest entry.
+    fn find_or_turn(
+        &mut self,
+        b: &ConvexPolyhedron,
+        sb: &SatPiece,
+        id: u32,
+        rotation: &Rotation,
+    ) -> &Turned {
+        let bits = rotation.to_array().map(f32::to_bits);
+        if let Some(i) = self
+            .ring
+            .iter()
+            .position(|t| t.id == id && t.rotation == bits)
+        {
+            return &self.ring[i];
+        }
+        let i = self.next;
+        self.next = (i + 1) % TURNED_KEPT;
+        if self.ring.len() <= i {
+            self.ring.push(Turned::default());
+        }
+        let t = &mut self.ring[i];
+        t.id = id;
+        t.rotation = bits;
+        t.points.clear();
+        t.points.extend(b.points().iter().map(|&p| *rotation * p));
+        t.normals.clear();
+        t.normals
+            .extend(b.faces().iter().map(|f| *rotation * f.normal));
+        t.arcs.fill(b, sb, &t.normals, rotation);
+        t
+    }
 }
 
 thread_local! {
@@ -328,7 +384,7 @@ fn is_real(faces: [u32; 2]) -> bool {
 /// coordinate so that the crossing test runs over all of them at once (vectorised): per edge (in
 /// the order of its [`SatPiece`]), its two adjacent face normals negated (`n1`, `n2`) and their
 /// cross product, and its direction.
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct GaussArcs {
     dir: Vec<Vector>,
     n1: [Vec<Real>; 3],
@@ -338,8 +394,8 @@ struct GaussArcs {
 
 impl GaussArcs {
     /// Refills with the real edges of `b` (`sb`): its face normals `nb` are already in A's frame,
-    /// `pos12` turns the edge directions.
-    fn fill(&mut self, b: &ConvexPolyhedron, sb: &SatPiece, nb: &[Vector], pos12: &Pose) {
+    /// `rotation` turns the edge directions.
+    fn fill(&mut self, b: &ConvexPolyhedron, sb: &SatPiece, nb: &[Vector], rotation: &Rotation) {
         for v in self
             .n1
             .iter_mut()
@@ -350,8 +406,7 @@ impl GaussArcs {
         }
         self.dir.clear();
         for e in &sb.edges {
-            self.dir
-                .push(pos12.rotation * b.edges()[e.index as usize].dir);
+            self.dir.push(*rotation * b.edges()[e.index as usize].dir);
             let (c, d) = (-nb[e.faces[0] as usize], -nb[e.faces[1] as usize]);
             let x = d.cross(c);
             for k in 0..3 {
@@ -611,6 +666,7 @@ mod tests {
         let (sa, sb) = (SatPiece::new(&a), SatPiece::new(&b));
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         let mut scratch = Scratch::default();
+        let mut turned = TurnedPieces::default();
         let (mut overlapping, mut by_edges) = (0, 0);
         for _ in 0..4000 {
             let angles = Vector::new(rng.random(), rng.random(), rng.random()) * 2.0 - Vector::ONE;
@@ -621,7 +677,8 @@ mod tests {
                 rng.random_range(-20e-3..20e-3),
             );
             let pos12 = Pose::from_parts(offset, rotation);
-            let Ok((s, axis, n)) = best_axis(&pos12, (&a, &sa), (&b, &sb), 30e-6, &mut scratch)
+            let b_turned = turned.find_or_turn(&b, &sb, 0, &pos12.rotation);
+            let Ok((s, axis, n)) = best_axis(&pos12, (&a, &sa), &sb, b_turned, 30e-6, &mut scratch)
             else {
                 continue;
             };
@@ -657,5 +714,75 @@ mod tests {
         }
         assert!(overlapping > 1000, "{overlapping} overlaps");
         assert!(by_edges > 50, "{by_edges} edge axes among {overlapping}");
+    }
+
+    /// A box, for a second kind of piece.
+    fn block() -> ConvexPolyhedron {
+        let mut points = Vec::new();
+        for z in [0.0, 6e-3] {
+            for (x, y) in [(0.0, 0.0), (2e-3, 0.0), (2e-3, 3e-3), (0.0, 3e-3)] {
+                points.push(Vector::new(x, y, z));
+            }
+        }
+        ConvexPolyhedron::from_convex_hull(&points).expect("a block")
+    }
+
+    /// Pieces kept turned give every pair the manifold it gets from pieces turned anew: two
+    /// pieces of B met in turn against A, several pairs at each rotation (as a compound's pairs
+    /// share theirs), more pieces and rotations than the kept ones.
+    #[test]
+    fn pieces_kept_turned_give_the_manifolds_of_pieces_turned_anew() {
+        let a = strip();
+        let bs = [strip(), block()];
+        let sa = SatPiece::new(&a);
+        let sbs = bs.each_ref().map(SatPiece::new);
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let mut kept = TurnedPieces::default();
+        let mut with_contact = 0;
+        for _ in 0..400 {
+            let angles = Vector::new(rng.random(), rng.random(), rng.random()) * 2.0 - Vector::ONE;
+            let rotation = Rotation::from_scaled_axis(angles * rng.random_range(0.0..0.1));
+            for _ in 0..6 {
+                let which = rng.random_range(0..2);
+                let id = 40 + which as u32 + 2 * rng.random_range(0..10);
+                let offset = Vector::new(
+                    rng.random_range(-2e-3..4e-3),
+                    rng.random_range(-3e-3..2e-3),
+                    rng.random_range(-5e-3..15e-3),
+                );
+                let pos12 = Pose::from_parts(offset, rotation);
+                let (b, sb) = (&bs[which], &sbs[which]);
+                let mut m_kept = ContactManifold::<(), ()>::new();
+                let mut m_anew = ContactManifold::<(), ()>::new();
+                // A piece id names one piece: ids of the same parity are the same piece here.
+                let gap_kept = sat_manifold(
+                    &pos12,
+                    (&a, &sa),
+                    (b, sb, id),
+                    30e-6,
+                    &mut m_kept,
+                    &mut kept,
+                );
+                let mut anew = TurnedPieces::default();
+                let gap_anew = sat_manifold(
+                    &pos12,
+                    (&a, &sa),
+                    (b, sb, id),
+                    30e-6,
+                    &mut m_anew,
+                    &mut anew,
+                );
+                assert_eq!(gap_kept.map(f32::to_bits), gap_anew.map(f32::to_bits));
+                assert_eq!(m_kept.local_n1.to_array(), m_anew.local_n1.to_array());
+                assert_eq!(m_kept.points.len(), m_anew.points.len());
+                for (p, q) in m_kept.points.iter().zip(&m_anew.points) {
+                    assert_eq!(p.local_p1.to_array(), q.local_p1.to_array());
+                    assert_eq!(p.local_p2.to_array(), q.local_p2.to_array());
+                    assert_eq!(p.dist.to_bits(), q.dist.to_bits());
+                }
+                with_contact += usize::from(!m_kept.points.is_empty());
+            }
+        }
+        assert!(with_contact > 200, "{with_contact} pairs in contact");
     }
 }
