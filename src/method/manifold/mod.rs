@@ -608,9 +608,10 @@ mod tests {
         assert!((n[0] - s).abs() < 1e-9 && (n[1] - s).abs() < 1e-9, "{n:?}");
     }
 
-    #[test]
-    fn a_bounded_cache_search_finds_what_the_unbounded_one_finds() {
-        let pts: Vec<[f64; 6]> = (0..3000)
+    /// `n` points spread like contact poses in scaled coordinates: tenths along x and y, tens
+    /// along z, units along the angles.
+    fn anisotropic_cloud(n: usize) -> Vec<[f64; 6]> {
+        (0..n)
             .map(|i| {
                 let t = i as f64;
                 [
@@ -622,7 +623,12 @@ mod tests {
                     (t * 0.173).sin(),
                 ]
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn a_bounded_cache_search_finds_what_the_unbounded_one_finds() {
+        let pts = anisotropic_cloud(3000);
         let index = ScaledIndex::new(&pts);
         let m = NonZero::new(16).expect("16");
         for q in pts.iter().step_by(97) {
@@ -648,19 +654,7 @@ mod tests {
 
     #[test]
     fn rotated_index_finds_the_same_neighbours() {
-        let pts: Vec<[f64; 6]> = (0..2000)
-            .map(|i| {
-                let t = i as f64;
-                [
-                    0.2 * (t * 0.731).sin(),
-                    0.2 * (t * 0.377).cos(),
-                    10.0 * (t * 0.0113).sin(),
-                    2.0 * (t * 0.517).sin(),
-                    2.0 * (t * 0.291).cos(),
-                    1.0 * (t * 0.173).sin(),
-                ]
-            })
-            .collect();
+        let pts = anisotropic_cloud(2000);
         let a = ScaledIndex::new(&pts);
         let b = ScaledIndex::unrotated(&pts);
         for q in pts.iter().step_by(37) {

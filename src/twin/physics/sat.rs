@@ -51,7 +51,8 @@ const COHERENCE_DIST_SQ: Real = 1e-12;
 const EDGE_TOLERANCE: Real = 1e-7;
 
 /// The SAT manifold of two pieces (`pos12` places `b` in `a`'s frame; `sa`, `sb` are their
-/// [`SatPiece`]s; `b_id` names `b` among the pieces whose turned copies `turned` keeps). Returns `Some(gap)` when the pieces are apart by more than `prediction`: `gap`
+/// [`SatPiece`]s; `b_id` names `b` among the pieces whose turned copies `turned` keeps, one id
+/// per piece). Returns `Some(gap)` when the pieces are apart by more than `prediction`: `gap`
 /// (metres) is a lower bound on their distance, the separation along the axis that proved it (the
 /// manifold is then empty).
 pub(crate) fn sat_manifold<M, C: Default + Copy>(
@@ -752,26 +753,14 @@ mod tests {
                 );
                 let pos12 = Pose::from_parts(offset, rotation);
                 let (b, sb) = (&bs[which], &sbs[which]);
-                let mut m_kept = ContactManifold::<(), ()>::new();
-                let mut m_anew = ContactManifold::<(), ()>::new();
                 // A piece id names one piece: ids of the same parity are the same piece here.
-                let gap_kept = sat_manifold(
-                    &pos12,
-                    (&a, &sa),
-                    (b, sb, id),
-                    30e-6,
-                    &mut m_kept,
-                    &mut kept,
-                );
-                let mut anew = TurnedPieces::default();
-                let gap_anew = sat_manifold(
-                    &pos12,
-                    (&a, &sa),
-                    (b, sb, id),
-                    30e-6,
-                    &mut m_anew,
-                    &mut anew,
-                );
+                let test = |turned: &mut TurnedPieces| {
+                    let mut m = ContactManifold::<(), ()>::new();
+                    let gap = sat_manifold(&pos12, (&a, &sa), (b, sb, id), 30e-6, &mut m, turned);
+                    (gap, m)
+                };
+                let (gap_kept, m_kept) = test(&mut kept);
+                let (gap_anew, m_anew) = test(&mut TurnedPieces::default());
                 assert_eq!(gap_kept.map(f32::to_bits), gap_anew.map(f32::to_bits));
                 assert_eq!(m_kept.local_n1.to_array(), m_anew.local_n1.to_array());
                 assert_eq!(m_kept.points.len(), m_anew.points.len());
