@@ -170,9 +170,14 @@ impl Rows {
         self.impulses_at(c, s, slip(s))
     }
 
+    /// The normal impulse (N s) of point `c` at normal row speed `speed` (m/s).
+    fn normal_impulse(&self, c: usize, speed: f64) -> f64 {
+        self.normal_weight[c] * (self.target[c] - speed).max(0.0)
+    }
+
     /// [`Rows::impulses`] with the slip speed `slip` of `s` ([`slip`]) given.
     fn impulses_at(&self, c: usize, s: &[f64; 3], slip: f64) -> [f64; 3] {
-        let normal = self.normal_weight[c] * (self.target[c] - s[0]).max(0.0);
+        let normal = self.normal_impulse(c, s[0]);
         let (w, b) = (self.friction_weight[c], self.bound[c]);
         let scale = if w * slip <= b { -w } else { -b / slip };
         [normal, scale * s[1], scale * s[2]]
@@ -268,7 +273,7 @@ fn solve_from(
             speeds = rows.speeds(&v);
         }
         for (c, s) in speeds.iter().enumerate() {
-            rows.bound[c] = friction * rows.impulses(c, s)[0];
+            rows.bound[c] = friction * rows.normal_impulse(c, s[0]);
         }
     }
     Some((rows, v, speeds))
@@ -506,11 +511,15 @@ fn newton_system(
         }
     };
     for (c, s) in speeds.iter().enumerate() {
+        let normal = rows.normal_impulse(c, s[0]);
+        if normal > 0.0 {
+            add(3 * c, normal, &[(3 * c, rows.normal_weight[c])]);
+        }
+        if rows.bound[c] <= 0.0 {
+            continue; // no friction yet (no curvature, zero impulses)
+        }
         let slip = slip(s);
         let p = rows.impulses_at(c, s, slip);
-        if p[0] > 0.0 {
-            add(3 * c, p[0], &[(3 * c, rows.normal_weight[c])]);
-        }
         let (t1, t2) = (3 * c + 1, 3 * c + 2);
         if let Some([h11, h12, h22]) = rows.friction_curvature(c, s, slip) {
             add(t1, p[1], &[(t1, h11), (t2, h12)]);
@@ -572,6 +581,16 @@ fn line_search(
         let (mut d1, mut d2) = (a0 + a1 * alpha, a1);
         for (c, (s, sigma)) in s0.iter().zip(sd).enumerate() {
             let at: [f64; 3] = std::array::from_fn(|k| s[k] + alpha * sigma[k]);
+            if rows.bound[c] <= 0.0 {
+                // No friction yet: its impulses are signed zeros, which leave every non-zero
+                // sum as it is (a zero `d1` may change its sign only, which no test below sees).
+                let normal = rows.normal_impulse(c, at[0]);
+                d1 -= normal * sigma[0];
+                if normal > 0.0 {
+                    d2 += rows.normal_weight[c] * sigma[0] * sigma[0];
+                }
+                continue;
+            }
             let slip = slip(&at);
             let p = rows.impulses_at(c, &at, slip);
             d1 -= p[0] * sigma[0] + p[1] * sigma[1] + p[2] * sigma[2];
