@@ -14,6 +14,7 @@
 use rapier3d::parry::math::{Pose, Real, Rotation, Vector};
 use rapier3d::parry::query::{ContactManifold, TrackedContact};
 use rapier3d::parry::shape::{ConvexPolyhedron, PackedFeatureId};
+use smallvec::SmallVec;
 
 /// Smallest and largest projection of a polyhedron's vertices on `dir` (its own frame).
 fn extent(p: &ConvexPolyhedron, dir: Vector) -> (Real, Real) {
@@ -89,8 +90,9 @@ pub(crate) fn sat_manifold<M, C: Default + Copy>(
             return Some(gap);
         }
     };
-    // The old points are kept only to carry their ids and impulses over to the new ones.
-    let old_points = std::mem::take(&mut manifold.points);
+    // The old points are kept only to carry their ids and impulses over to the new ones (a face
+    // contact keeps at most four: copied aside, so that the manifold keeps its storage).
+    let old_points: SmallVec<[TrackedContact<C>; 4]> = manifold.points.drain(..).collect();
     manifold.local_n1 = n1;
     manifold.local_n2 = pos12.rotation.inverse() * -n1;
     match axis {
@@ -516,7 +518,11 @@ impl GaussArcs {
     }
 }
 
-fn face_polygon(p: &ConvexPolyhedron, face: usize) -> Vec<Vector> {
+/// A face polygon, or what clipping leaves of one: held inline up to 16 vertices (a strip's faces
+/// have four or five), so that a contact allocates nothing.
+type Polygon = SmallVec<[Vector; 16]>;
+
+fn face_polygon(p: &ConvexPolyhedron, face: usize) -> Polygon {
     let f = &p.faces()[face];
     let first = f.first_vertex_or_edge as usize;
     p.vertices_adj_to_face()[first..first + f.num_vertices_or_edges as usize]
@@ -546,10 +552,11 @@ fn face_contacts<M, C: Default + Copy>(
         .enumerate()
         .map(|(k, f)| (k, f.normal.dot(n_i)))
         .fold((0, Real::MAX), |acc, x| if x.1 < acc.1 { x } else { acc });
-    let mut poly: Vec<Vector> = face_polygon(inc, inc_face)
+    let mut poly: Polygon = face_polygon(inc, inc_face)
         .iter()
         .map(|&p| *pos_ri * p)
         .collect();
+    let mut clipped = Polygon::new();
     let centre = reference.iter().copied().sum::<Vector>() / reference.len() as Real;
     for k in 0..reference.len() {
         let (v0, v1) = (reference[k], reference[(k + 1) % reference.len()]);
@@ -557,13 +564,14 @@ fn face_contacts<M, C: Default + Copy>(
         if side.dot(centre - v0) > 0.0 {
             side = -side;
         }
-        poly = clip(&poly, side, side.dot(v0));
+        clip(&poly, side, side.dot(v0), &mut clipped);
+        std::mem::swap(&mut poly, &mut clipped);
         if poly.is_empty() {
             return;
         }
     }
     let plane = n.dot(reference[0]);
-    let mut points: Vec<(Vector, Real)> = poly
+    let mut points: Depths = poly
         .into_iter()
         .map(|p| (p, n.dot(p) - plane))
         .filter(|(_, d)| *d <= prediction)
@@ -583,9 +591,9 @@ fn face_contacts<M, C: Default + Copy>(
     }
 }
 
-/// Sutherland-Hodgman: keeps the part of a polygon with `side . p <= offset`.
-fn clip(poly: &[Vector], side: Vector, offset: Real) -> Vec<Vector> {
-    let mut out = Vec::with_capacity(poly.len() + 2);
+/// Sutherland-Hodgman: the part of a polygon with `side . p <= offset`, into `out`.
+fn clip(poly: &[Vector], side: Vector, offset: Real, out: &mut Polygon) {
+    out.clear();
     for k in 0..poly.len() {
         let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
         let (dp, dq) = (side.dot(p) - offset, side.dot(q) - offset);
@@ -596,12 +604,14 @@ fn clip(poly: &[Vector], side: Vector, offset: Real) -> Vec<Vector> {
             out.push(p + (q - p) * (dp / (dp - dq)));
         }
     }
-    out
 }
+
+/// Contact points on the incident face and their depths along the reference normal (metres).
+type Depths = SmallVec<[(Vector, Real); 16]>;
 
 /// Keeps at most four points spanning the largest area: the deepest, the farthest from it, the
 /// farthest from their line, and the farthest on the other side.
-fn reduce_to_four(points: &mut Vec<(Vector, Real)>) {
+fn reduce_to_four(points: &mut Depths) {
     if points.len() <= 4 {
         return;
     }
@@ -630,10 +640,14 @@ fn reduce_to_four(points: &mut Vec<(Vector, Real)>) {
     let fourth = (0..points.len())
         .min_by(|&i, &j| area(i).dot(normal).total_cmp(&area(j).dot(normal)))
         .unwrap_or(0);
-    let mut keep = vec![deepest, far, third, fourth];
+    let mut keep = [deepest, far, third, fourth];
     keep.sort_unstable();
-    keep.dedup();
-    *points = keep.into_iter().map(|i| points[i]).collect();
+    *points = keep
+        .iter()
+        .enumerate()
+        .filter(|&(k, i)| k == 0 || keep[k - 1] != *i)
+        .map(|(_, &i)| points[i])
+        .collect();
 }
 
 #[allow(clippy::too_many_arguments)]
