@@ -35,7 +35,7 @@ fn separation(a: &ConvexPolyhedron, b: &ConvexPolyhedron, pos12: &Pose, n: Vecto
 }
 
 /// The axis that decides the contact.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 enum Axis {
     FaceA(usize),
     FaceB(usize),
@@ -155,16 +155,14 @@ fn best_axis(
     }
     // Edge pairs that make a face of the Minkowski difference.
     let arcs = &b_turned.arcs;
-    let l1 = |v: Vector| v.x.abs() + v.y.abs() + v.z.abs();
-    let prune_limit = if prune {
-        best.0.min(0.0) - PRUNE_SLACK * (sa.reach + sb.reach + l1(pos12.translation))
-    } else {
-        Real::MIN
-    };
     let heights = Heights {
         above,
         per_face: pb.len(),
-        limit: prune_limit,
+        limit: if prune {
+            prune_limit(best.0, (sa, sb), pos12)
+        } else {
+            Real::MIN
+        },
     };
     edge_stage((a, sa), sb, (pb, arcs), prediction, best, crosses, &heights)
 }
@@ -180,6 +178,14 @@ struct Heights<'a> {
 /// Absolute slack of the edge pruning, relative to the pieces' reach: far above the f32 rounding
 /// of the heights and of the edge stage's separations, far below the margins that prune.
 const PRUNE_SLACK: Real = 1e-5;
+
+/// The height below which an edge of A is passed over, when the best face axis separates the
+/// pieces by `face_best` (metres): below zero and below it by the slack.
+fn prune_limit(face_best: Real, (sa, sb): (&SatPiece, &SatPiece), pos12: &Pose) -> Real {
+    let t = pos12.translation;
+    let scale = sa.reach + sb.reach + t.x.abs() + t.y.abs() + t.z.abs();
+    face_best.min(0.0) - PRUNE_SLACK * scale
+}
 
 /// Whether every edge pair of `ea` (an edge of A) that the edge stage could take separates the
 /// pieces by less than `heights.limit` (which is negative and below the best face axis): the edge
@@ -640,14 +646,10 @@ fn reduce_to_four(points: &mut Depths) {
     let fourth = (0..points.len())
         .min_by(|&i, &j| area(i).dot(normal).total_cmp(&area(j).dot(normal)))
         .unwrap_or(0);
-    let mut keep = [deepest, far, third, fourth];
+    let mut keep: SmallVec<[usize; 4]> = SmallVec::from_buf([deepest, far, third, fourth]);
     keep.sort_unstable();
-    *points = keep
-        .iter()
-        .enumerate()
-        .filter(|&(k, i)| k == 0 || keep[k - 1] != *i)
-        .map(|(_, &i)| points[i])
-        .collect();
+    keep.dedup();
+    *points = keep.into_iter().map(|i| points[i]).collect();
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -829,21 +831,20 @@ mod tests {
             let b_turned = turned.find_or_turn(&b, &sb, 0, &pos12.rotation);
             let mut test = |prune| {
                 best_axis(&pos12, (&a, &sa), &sb, b_turned, 30e-6, &mut scratch, prune)
-                    .map(|(s, axis, n)| (s.to_bits(), format!("{axis:?}"), n.to_array()))
+                    .map(|(s, axis, n)| (s.to_bits(), axis, n.to_array()))
                     .map_err(|(n, gap)| (n.to_array(), gap.to_bits()))
             };
             let (pruned, full) = (test(true), test(false));
             assert_eq!(pruned, full, "{pos12:?}");
             let Ok((s, axis, _)) = full else { continue };
-            by_edges += usize::from(axis.starts_with("Edges"));
-            if along && !axis.starts_with("Edges") {
-                let s = f32::from_bits(s);
-                let slack =
-                    PRUNE_SLACK * (sa.reach + sb.reach + pos12.translation.abs().element_sum());
+            let by_edge = matches!(axis, Axis::Edges(..));
+            by_edges += usize::from(by_edge);
+            if along && !by_edge {
+                // The best axis is a face's: its separation is the limit's face value.
                 let heights = Heights {
                     above: &scratch.above,
                     per_face: b.points().len(),
-                    limit: s.min(0.0) - slack,
+                    limit: prune_limit(f32::from_bits(s), (&sa, &sb), &pos12),
                 };
                 edges += sa.edges.len();
                 passed_over += sa
