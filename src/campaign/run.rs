@@ -26,7 +26,7 @@ use crate::method::manifold::Manifold;
 use crate::method::manifold::cache::{self, BuildProgress};
 use crate::method::seeds;
 use crate::method::session::Recorder;
-use crate::method::trial::{TrialResult, errored_trial, finish_trial, observe_trial, run_trial};
+use crate::method::trial::{Observing, TrialResult, errored_trial, finish_trial, run_trial};
 use crate::replay::Replay;
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
@@ -349,12 +349,13 @@ fn go_on(progress: &dyn CampaignProgress) -> Result<()> {
     Ok(())
 }
 
-/// Trials that observe alike ([`share_observations`]), each record handed to `on_done` as it
-/// finishes: the first one's observation runs once, and each trial goes on from a fork of it
-/// (and of its replay's recording), so that its record and its replay are the ones it gives
-/// alone, bit for bit. An error or a panic in the observation is every trial's, as it would be
-/// alone; one after it is its own trial's. A stop is seen before each trial; a trial not run then
-/// runs alone when the campaign is resumed.
+/// Trials that observe alike but for their budget ([`share_observations`]), each record handed
+/// to `on_done` as it finishes: the longest observation runs once, and at each budget the trials
+/// that end their observation there go on from a fork of it (and of its replay's recording), so
+/// that each record and replay is the one its trial gives alone, bit for bit. An error or a panic
+/// in the observation is that of every trial still observing, as it would be alone; one after it
+/// is its own trial's. A stop is seen before each trial; a trial not run then runs alone when the
+/// campaign is resumed.
 fn run_shared(
     scenario: &Scenario,
     prepared: &Prepared,
@@ -365,47 +366,54 @@ fn run_shared(
 ) -> Result<()> {
     go_on(progress)?;
     let cells = scenario.cells();
-    let first = &trials[0];
-    let (pair, robot, _) = prepared.inputs(&cells[first.cell]);
-    let params = scenario.cell_params_for(&cells[first.cell]);
-    let config = scenario.trial_config(&cells[first.cell]);
+    let budget = |t: &TrialSpec| scenario.trial_config(&cells[t.cell]).t_obs_s;
+    let mut trials = trials.to_vec();
+    trials.sort_by(|a, b| budget(a).total_cmp(&budget(b)));
+    let longest = &trials[trials.len() - 1];
+    let (pair, robot, _) = prepared.inputs(&cells[longest.cell]);
+    let params = scenario.cell_params_for(&cells[longest.cell]);
+    let config = scenario.trial_config(&cells[longest.cell]);
     let mut watched = trials
         .iter()
         .any(|t| replays.may_want(t))
         .then(|| Replay::new(pair, robot));
-    let observed = guarded(|| {
+    let mut observing = guarded(|| {
         let recorder = watched.as_mut().map(|r| r as &mut dyn Recorder);
-        observe_trial(pair, robot, &params, &config, first.seed, recorder)
+        Observing::start(pair, robot, &params, &config, longest.seed, recorder)
     });
-    let observed = match observed {
-        Ok(observed) => observed,
-        Err(message) => {
-            return trials.iter().try_for_each(|spec| {
-                on_done(&record(
-                    spec,
-                    errored(scenario, prepared, spec, message.clone()),
-                ))
-            });
-        }
-    };
-    trials.iter().enumerate().try_for_each(|(i, spec)| {
+    for (i, spec) in trials.iter().enumerate() {
         if i > 0 {
             go_on(progress)?;
+        }
+        let at_budget = observing.as_mut().map_err(|m| m.clone()).and_then(|o| {
+            guarded(|| {
+                o.observe_until(
+                    budget(spec),
+                    watched.as_mut().map(|r| r as &mut dyn Recorder),
+                );
+                Ok(o.observed())
+            })
+        });
+        if let Err(message) = &at_budget {
+            observing = Err(message.clone());
         }
         let cell = &cells[spec.cell];
         let (_, _, manifold) = prepared.inputs(cell);
         let config = scenario.trial_config(cell);
         let mut replay = watched.clone().filter(|_| replays.may_want(spec));
-        let result = guarded(|| {
-            let recorder = replay.as_mut().map(|r| r as &mut dyn Recorder);
-            finish_trial(observed.fork(), pair, &config, manifold, recorder)
+        let result = at_budget.and_then(|observed| {
+            guarded(|| {
+                let recorder = replay.as_mut().map(|r| r as &mut dyn Recorder);
+                finish_trial(observed, pair, &config, manifold, recorder)
+            })
         });
         if let Ok(result) = &result {
             replays.keep(spec, replay.as_ref(), result, manifold);
         }
         let result = result.unwrap_or_else(|m| errored(scenario, prepared, spec, m));
-        on_done(&record(spec, result))
-    })
+        on_done(&record(spec, result))?;
+    }
+    Ok(())
 }
 
 /// The record of trial `spec`.

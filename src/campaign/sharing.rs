@@ -1,20 +1,22 @@
 //! Trials that share their observation (issue 17). A campaign compares its methods on the same
 //! draws: every cell of a pair runs trial `i` from the same seed. The direct baseline observes
 //! for `direct_t_obs_s` (the paper's 10 s) exactly as the manifold method does at the same
-//! `t_obs`, so the two trials are one simulation until the observation ends; they differ only in
-//! what follows (registration, insertion). A campaign runs that observation once and each trial
-//! goes on from a fork of the cell (`method::trial::Observed::fork`), and each record is the one
-//! its trial gives alone, bit for bit.
+//! `t_obs`, and the manifold method's shorter budgets (6 and 8 s) observe the same motion for
+//! less time (`method::observe::observation_motion`): the trials of a seed are one simulation
+//! until each one's observation ends, and differ only in when it ends and in what follows
+//! (registration, insertion). A campaign runs the longest observation once; each trial goes on
+//! from a fork of the cell taken at its own budget (`method::trial::Observing`), and each record
+//! is the one its trial gives alone, bit for bit.
 
 use crate::campaign::records::TrialSpec;
 use crate::campaign::scenario::Scenario;
 use std::collections::HashMap;
 
 /// `trials`, in their order, gathered into the pieces of work a campaign runs: each piece is
-/// one trial, or the trials that observe alike. Trials observe alike when they have the same
-/// seed, pair and cell parameters, and trial settings that differ only after the observation
-/// (`TrialConfig::observes_like`). A trial whose settings are invalid runs alone (its error
-/// is its own).
+/// one trial, or the trials that observe alike but for their budget. They do when they have the
+/// same seed, pair and cell parameters, and trial settings that differ only in `t_obs` and after
+/// the observation (`TrialConfig::observes_like_but_for_budget`). A trial whose settings are
+/// invalid runs alone (its error is its own).
 pub fn share_observations(scenario: &Scenario, trials: &[TrialSpec]) -> Vec<Vec<TrialSpec>> {
     let cells = scenario.cells();
     let configs: Vec<_> = cells.iter().map(|c| scenario.trial_config(c)).collect();
@@ -25,7 +27,7 @@ pub fn share_observations(scenario: &Scenario, trials: &[TrialSpec]) -> Vec<Vec<
             && ca.geometry == cb.geometry
             && ca.clearance_mm == cb.clearance_mm
             && params[a.cell] == params[b.cell]
-            && configs[a.cell].observes_like(&configs[b.cell])
+            && configs[a.cell].observes_like_but_for_budget(&configs[b.cell])
     };
     let mut pieces: Vec<Vec<TrialSpec>> = Vec::with_capacity(trials.len());
     let mut by_seed: HashMap<u64, Vec<usize>> = HashMap::new();
@@ -84,17 +86,24 @@ mod tests {
     }
 
     #[test]
-    fn the_direct_baseline_shares_the_observation_of_the_manifold_method_at_its_t_obs() {
+    fn the_trials_of_a_seed_share_one_observation_whatever_their_budget() {
         let s = scenario("");
         let pieces = share_observations(&s, &all_trials(&s));
         assert_eq!(pieces.iter().map(Vec::len).sum::<usize>(), 12);
+        let piece = |g: &str, t: usize| {
+            [
+                format!("{g} 0.5 mm manifold 6 s {t}"),
+                format!("{g} 0.5 mm manifold 10 s {t}"),
+                format!("{g} 0.5 mm direct 10 s {t}"),
+            ]
+        };
         assert_eq!(
             shared(&s),
             [
-                ["cross 0.5 mm manifold 10 s 0", "cross 0.5 mm direct 10 s 0"],
-                ["cross 0.5 mm manifold 10 s 1", "cross 0.5 mm direct 10 s 1"],
-                ["key 0.5 mm manifold 10 s 0", "key 0.5 mm direct 10 s 0"],
-                ["key 0.5 mm manifold 10 s 1", "key 0.5 mm direct 10 s 1"],
+                piece("cross", 0),
+                piece("cross", 1),
+                piece("key", 0),
+                piece("key", 1)
             ]
         );
         // Different insertion settings still share; different observation settings do not.
@@ -103,6 +112,20 @@ mod tests {
         assert_eq!(shared(&insertion).len(), 4);
         let observation =
             scenario("[direct.gains.observe]\nstiffness = [900, 900, 1500, 5, 5, 5]\n");
-        assert!(shared(&observation).is_empty());
+        let manifold_only = |g: &str, t: usize| {
+            [
+                format!("{g} 0.5 mm manifold 6 s {t}"),
+                format!("{g} 0.5 mm manifold 10 s {t}"),
+            ]
+        };
+        assert_eq!(
+            shared(&observation),
+            [
+                manifold_only("cross", 0),
+                manifold_only("cross", 1),
+                manifold_only("key", 0),
+                manifold_only("key", 1)
+            ]
+        );
     }
 }

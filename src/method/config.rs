@@ -56,8 +56,10 @@ pub struct TrialConfig {
     pub phase1_scale: f64,
     pub phase2_scale: f64,
     pub observe_depth_m: f64,
-    /// Share of `t_obs` spent descending to `observe_depth_m` (phase 1).
-    pub phase1_fraction: f64,
+    /// Time spent descending from `start_depth_m` to `observe_depth_m` (phase 1), s: the same
+    /// for every `t_obs` (an observation shorter than this ends in phase 1). The default, 3.6 s,
+    /// leaves the paper's shortest budget (6 s) two fifths in phase 2.
+    pub phase1_s: f64,
     /// Gains of the observation motions: compliant, and softest in rotation, so that the
     /// orientation error of the nominal pose presses the peg only lightly against the walls.
     pub observe_gains: ImpedanceGains,
@@ -109,7 +111,7 @@ impl Default for TrialConfig {
             phase1_scale: 1.0,
             phase2_scale: 0.8,
             observe_depth_m: 18e-3,
-            phase1_fraction: 0.6,
+            phase1_s: 3.6,
             observe_gains: ImpedanceGains {
                 stiffness: [1000.0, 1000.0, 1500.0, 5.0, 5.0, 5.0],
                 additional_force: [0.0, 0.0, -5.0, 0.0, 0.0, 0.0],
@@ -141,7 +143,7 @@ impl TrialConfig {
     /// (the method, the observations kept, registration, retract, alignment, insertion, the
     /// success threshold). A field added to `TrialConfig` counts as part of the observation
     /// until it is listed here. Such trials share one observation in a campaign
-    /// (`campaign::sharing`, `method::trial::Observed::fork`).
+    /// (`campaign::sharing`, `method::trial::Observing`).
     pub fn observes_like(&self, other: &TrialConfig) -> bool {
         let later = TrialConfig {
             method: self.method,
@@ -161,6 +163,20 @@ impl TrialConfig {
             ..other.clone()
         };
         later == *self
+    }
+
+    /// Whether trials under `self` and `other` run the same simulation (same seed, pair and
+    /// cell) until the shorter of their two observations ends: they observe alike but for
+    /// `t_obs`, which only says when the observation's motion stops
+    /// ([`crate::method::observe::observation_motion`]). A campaign runs the longer
+    /// observation once and the shorter trial goes on from its budget
+    /// (`method::trial::Observing`).
+    pub fn observes_like_but_for_budget(&self, other: &TrialConfig) -> bool {
+        let same_budget = TrialConfig {
+            t_obs_s: other.t_obs_s,
+            ..self.clone()
+        };
+        same_budget.observes_like(other)
     }
 
     /// Rejects values a trial cannot run with, naming the field.
@@ -232,10 +248,10 @@ impl TrialConfig {
                 self.insert_seat_window_m
             )));
         }
-        if !(self.phase1_fraction > 0.0 && self.phase1_fraction <= 1.0) {
+        if !(self.phase1_s > 0.0 && self.phase1_s <= MAX_T_OBS_S) {
             return Err(Error::Input(format!(
-                "phase1_fraction {}: expected a share in (0, 1]",
-                self.phase1_fraction
+                "phase1_s {} s: expected more than 0 and at most {MAX_T_OBS_S} s",
+                self.phase1_s
             )));
         }
         self.search.ensure_valid()?;

@@ -38,7 +38,10 @@ pub fn temporal_downsample(poses: &[Pose6], n: usize) -> Vec<Pose6> {
 
 /// The observation's motion: the reference sampler's primitives, with amplitudes widened by the
 /// uncertainty of the nominal pose (the sweep must reach past the hole wherever it really is),
-/// descending from the start depth to the observation depth in phase 1.
+/// descending from the start depth to the observation depth in `phase1_s` (phase 1). The motion
+/// does not depend on `t_obs`: the budget only says when it stops, so a longer observation is a
+/// shorter one gone on (as a robot given more time would), and the observations of a `t_obs`
+/// sweep differ in their budget alone.
 pub fn observation_motion(config: &TrialConfig) -> SamplingMotion {
     let mut motion = SamplerConfig::default().motion;
     let r = &config.offset_range;
@@ -47,45 +50,89 @@ pub fn observation_motion(config: &TrialConfig) -> SamplingMotion {
     motion.descent = Descent {
         start_depth_m: config.start_depth_m,
         end_depth_m: config.observe_depth_m,
-        speed_m_per_s: (config.observe_depth_m - config.start_depth_m).max(0.0)
-            / (config.phase1_fraction * config.t_obs_s),
+        speed_m_per_s: (config.observe_depth_m - config.start_depth_m).max(0.0) / config.phase1_s,
     };
     motion
 }
 
-/// Observes for `config.t_obs_s` around `believed` (`base_T_hole`), the perturbation seeded with
-/// `perturbation_seed`. Stops early only if the physics faults (the session keeps the fault).
-pub fn observe(
-    session: &mut Session,
-    believed: &Iso,
-    config: &TrialConfig,
+/// The observation (IV-C) around `believed` (`base_T_hole`), its perturbation seeded by
+/// `perturbation_seed`. It can stop at several budgets: run to the shortest, read what it holds,
+/// go on to the next. What it holds at each is what an observation of that budget alone records,
+/// bit for bit (the motion does not depend on the budget, [`observation_motion`]). It stops
+/// early only if the physics faults (the session keeps the fault).
+pub struct Observer {
+    believed: Iso,
+    motion: SamplingMotion,
+    schedule: ScaleSchedule,
     clearance_m: f64,
-    perturbation_seed: u64,
-) -> Observation {
-    session.set_phase(Phase::Observe);
-    let start_s = session.time_s();
-    let motion = observation_motion(config);
-    let drive = Drive {
-        base_t_hole: *believed,
-        motion: &motion,
-        schedule: ScaleSchedule {
-            before: config.phase1_scale,
-            after: config.phase2_scale,
-            switch_s: motion.descent.duration_s(),
-        },
-        clearance_m,
-        duration_s: config.t_obs_s,
-    };
-    let mut noise = PerturbationState::new(motion.perturbation.clone(), perturbation_seed);
-    let mut contacts = Vec::new();
-    drive.run(session, &mut noise, |m| {
-        if m.contact {
-            contacts.push(Pose6::from_iso(&m.tcp));
+    noise: PerturbationState,
+    contacts: Vec<Pose6>,
+    start_s: f64,
+    /// Steps of the motion run so far.
+    steps: usize,
+    /// Whether the physics faulted: the motion stops for good.
+    stopped: bool,
+}
+
+impl Observer {
+    /// Starts observing now, in the session's observation phase.
+    pub fn start(
+        session: &mut Session,
+        believed: &Iso,
+        config: &TrialConfig,
+        clearance_m: f64,
+        perturbation_seed: u64,
+    ) -> Observer {
+        session.set_phase(Phase::Observe);
+        let motion = observation_motion(config);
+        let noise = PerturbationState::new(motion.perturbation.clone(), perturbation_seed);
+        Observer {
+            believed: *believed,
+            schedule: ScaleSchedule {
+                before: config.phase1_scale,
+                after: config.phase2_scale,
+                switch_s: motion.descent.duration_s(),
+            },
+            motion,
+            clearance_m,
+            noise,
+            contacts: Vec::new(),
+            start_s: session.time_s(),
+            steps: 0,
+            stopped: false,
         }
-        ControlFlow::Continue(())
-    });
-    Observation {
-        contacts,
-        duration_s: session.time_s() - start_s,
+    }
+
+    /// Observes until `t_obs_s` after the start (nothing if it is there already), recording the
+    /// measured TCP pose at every step whose estimated wrench says contact.
+    pub fn run_to(&mut self, session: &mut Session, t_obs_s: f64) {
+        let drive = Drive {
+            base_t_hole: self.believed,
+            motion: &self.motion,
+            schedule: self.schedule,
+            clearance_m: self.clearance_m,
+            duration_s: t_obs_s,
+        };
+        let end = drive.steps_until(t_obs_s, session.dt_s());
+        if self.stopped || end <= self.steps {
+            return;
+        }
+        let contacts = &mut self.contacts;
+        let completed = drive.run_steps(session, &mut self.noise, self.steps..end, |m| {
+            if m.contact {
+                contacts.push(Pose6::from_iso(&m.tcp));
+            }
+            ControlFlow::Continue(())
+        });
+        self.steps = end;
+        self.stopped = !completed;
+    }
+
+    /// What has been observed so far, at simulated time `now_s`.
+    pub fn observation(&self, now_s: f64) -> Observation {
+        Observation {
+            contacts: self.contacts.clone(),
+            duration_s: now_s - self.start_s,
+        }
     }
 }

@@ -292,12 +292,31 @@ impl Drive<'_> {
         &self,
         session: &mut Session,
         noise: &mut PerturbationState,
-        mut on_step: impl FnMut(&Measurements) -> ControlFlow<()>,
+        on_step: impl FnMut(&Measurements) -> ControlFlow<()>,
     ) {
+        let steps = self.steps_until(self.duration_s, session.dt_s());
+        self.run_steps(session, noise, 0..steps, on_step);
+    }
+
+    /// The number of physics steps of `dt` in the first `t_s` of the drive.
+    pub fn steps_until(&self, t_s: f64, dt: f64) -> usize {
+        (t_s / dt).round() as usize
+    }
+
+    /// Runs steps `steps` of the drive (step `k` at `k dt` from its start), `noise` having run
+    /// the steps before; false if it stopped early. A drive run in consecutive pieces, each
+    /// after one that ran to its end, is the same simulation as one run whole (the observation
+    /// stops at each budget of a `t_obs` sweep this way).
+    pub fn run_steps(
+        &self,
+        session: &mut Session,
+        noise: &mut PerturbationState,
+        steps: std::ops::Range<usize>,
+        mut on_step: impl FnMut(&Measurements) -> ControlFlow<()>,
+    ) -> bool {
         let dt = session.dt_s();
         let mut motion = self.motion.clone();
-        let steps = (self.duration_s / dt).round() as usize;
-        for k in 0..steps {
+        for k in steps {
             let t = k as f64 * dt;
             motion.scale = if t < self.schedule.switch_s {
                 self.schedule.before
@@ -308,9 +327,10 @@ impl Drive<'_> {
             session
                 .command_pose(self.base_t_hole * motion.target(t, self.clearance_m, &n).to_iso());
             if !session.step() || on_step(&session.measurements()).is_break() {
-                return;
+                return false;
             }
         }
+        true
     }
 }
 

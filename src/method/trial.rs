@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::insert::{InsertEnd, Insertion, insert};
 use crate::method::manifold::Manifold;
-use crate::method::observe::{Observation, observe};
+use crate::method::observe::{Observation, Observer};
 use crate::method::register::{RegistrationConfig, register};
 use crate::method::search::{search, start_pose};
 use crate::method::seeds::TrialSeeds;
@@ -49,10 +49,10 @@ pub fn run_trial(
 }
 
 /// A trial up to the end of its observation (Fig. 3 "observe"): the cell as the observation
-/// left it, and what registration and insertion start from. Trials that differ only after their
-/// observation ([`TrialConfig::observes_like`]; same seed, pair, robot and cell) run it once
-/// and each goes on from a [`Observed::fork`]: a campaign's direct baseline and its manifold
-/// trials at the same `t_obs` share it.
+/// left it, and what registration and insertion start from. Trials that differ only in their
+/// budget and after their observation ([`TrialConfig::observes_like_but_for_budget`]; same
+/// seed, pair, robot and cell) run it once and each goes on from [`Observing::observed`] at its
+/// budget: a campaign's direct baseline and its manifold trials at every `t_obs` share it.
 pub struct Observed {
     config: TrialConfig,
     setup: Setup,
@@ -68,22 +68,6 @@ pub struct Observed {
     wall_s: f64,
 }
 
-impl Observed {
-    /// An independent copy, whose trial goes on bit for bit as this one's would ([`Cell::fork`]).
-    pub fn fork(&self) -> Observed {
-        Observed {
-            config: self.config.clone(),
-            setup: self.setup.clone(),
-            cell: self.cell.fork(),
-            fault: self.fault.clone(),
-            believed: self.believed,
-            search_s: self.search_s,
-            observation: self.observation.clone(),
-            wall_s: self.wall_s,
-        }
-    }
-}
-
 /// The first stages of a trial: the set-up, the approach (or search), and the observation.
 pub fn observe_trial(
     pair: &PartPair,
@@ -91,41 +75,128 @@ pub fn observe_trial(
     params: &CellParams,
     config: &TrialConfig,
     seed: u64,
-    recorder: Option<&mut dyn Recorder>,
+    mut recorder: Option<&mut dyn Recorder>,
 ) -> Result<Observed> {
-    config.ensure_valid()?;
-    let started = Instant::now();
-    let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
-    let mut cell = setup.cell(pair, robot, params, config)?;
-    // A reborrow for the session's shorter life (the cell is younger than the recorder).
-    let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
-    let mut session = Session::new(&mut cell, recorder, Phase::Search);
-    let believed = setup.approach(&mut session, config, pair.clearance_m);
-    let search_s = session.time_s();
-    let observation = match &believed {
-        Some(believed) => {
+    let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
+    let mut observing = Observing::start(pair, robot, params, config, seed, looking)?;
+    observing.observe_until(config.t_obs_s, recorder);
+    Ok(observing.into_observed())
+}
+
+/// A trial between its approach and the end of its observation, which can stop at several
+/// budgets: the trials of a `t_obs` sweep that observe alike but for their budget
+/// ([`TrialConfig::observes_like_but_for_budget`]) run the longest observation once, and each
+/// goes on from its own budget ([`Observing::observed`]) as it would alone, bit for bit.
+pub struct Observing {
+    config: TrialConfig,
+    setup: Setup,
+    cell: Cell,
+    fault: Option<SimFault>,
+    believed: Option<Iso>,
+    search_s: f64,
+    /// `None` when the trial stopped before observing.
+    observer: Option<Observer>,
+    /// The budget observed to so far, s.
+    budget_s: f64,
+    started: Instant,
+}
+
+impl Observing {
+    /// Sets the trial up (the hole offset, the cell) and approaches (or searches for) the hole;
+    /// the observation starts then, under `config` (the longest budget of those asked for).
+    pub fn start(
+        pair: &PartPair,
+        robot: &RobotModel,
+        params: &CellParams,
+        config: &TrialConfig,
+        seed: u64,
+        recorder: Option<&mut dyn Recorder>,
+    ) -> Result<Observing> {
+        config.ensure_valid()?;
+        let started = Instant::now();
+        let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
+        let mut cell = setup.cell(pair, robot, params, config)?;
+        // A reborrow for the session's shorter life (the cell is younger than the recorder).
+        let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
+        let mut session = Session::new(&mut cell, recorder, Phase::Search);
+        let believed = setup.approach(&mut session, config, pair.clearance_m);
+        let search_s = session.time_s();
+        let observer = believed.as_ref().map(|believed| {
             let perturbation = setup.seeds.perturbation();
-            observe(
+            Observer::start(
                 &mut session,
                 believed,
                 config,
                 pair.clearance_m,
                 perturbation,
             )
+        });
+        let fault = session.fault().cloned();
+        Ok(Observing {
+            config: config.clone(),
+            setup,
+            cell,
+            fault,
+            believed,
+            search_s,
+            observer,
+            budget_s: 0.0,
+            started,
+        })
+    }
+
+    /// Observes on until `t_obs_s` from the observation's start (at most the budget of the
+    /// configuration it started under).
+    pub fn observe_until(&mut self, t_obs_s: f64, recorder: Option<&mut dyn Recorder>) {
+        self.budget_s = t_obs_s.min(self.config.t_obs_s);
+        let Some(observer) = &mut self.observer else {
+            return;
+        };
+        let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
+        let fault = self.fault.take();
+        let mut session = Session::resume(&mut self.cell, recorder, fault, Phase::Observe);
+        observer.run_to(&mut session, self.budget_s);
+        self.fault = session.fault().cloned();
+    }
+
+    /// The trial as it stands, for a trial whose budget ends here: a fork of the cell
+    /// ([`Cell::fork`]) with the observation so far, under the configuration with this budget.
+    pub fn observed(&self) -> Observed {
+        let observation = self.observation();
+        Observed {
+            config: TrialConfig {
+                t_obs_s: self.budget_s,
+                ..self.config.clone()
+            },
+            setup: self.setup.clone(),
+            cell: self.cell.fork(),
+            fault: self.fault.clone(),
+            believed: self.believed,
+            search_s: self.search_s,
+            observation,
+            wall_s: self.started.elapsed().as_secs_f64(),
         }
-        None => Observation::default(),
-    };
-    let fault = session.fault().cloned();
-    Ok(Observed {
-        config: config.clone(),
-        setup,
-        cell,
-        fault,
-        believed,
-        search_s,
-        observation,
-        wall_s: started.elapsed().as_secs_f64(),
-    })
+    }
+
+    /// The trial at the end of its observation.
+    pub fn into_observed(self) -> Observed {
+        let observation = self.observation();
+        Observed {
+            config: self.config,
+            setup: self.setup,
+            cell: self.cell,
+            fault: self.fault,
+            believed: self.believed,
+            search_s: self.search_s,
+            observation,
+            wall_s: self.started.elapsed().as_secs_f64(),
+        }
+    }
+
+    fn observation(&self) -> Observation {
+        let now_s = self.cell.time_s();
+        (self.observer.as_ref()).map_or_else(Observation::default, |o| o.observation(now_s))
+    }
 }
 
 /// The last stages of a trial under `config` (which must observe like the one `observed` ran
