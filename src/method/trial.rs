@@ -88,12 +88,9 @@ pub fn observe_trial(
 /// ([`TrialConfig::observes_like_but_for_budget`]) run the longest observation once, and each
 /// goes on from its own budget ([`Observing::observed`]) as it would alone, bit for bit.
 pub struct Observing {
-    config: TrialConfig,
-    setup: Setup,
-    cell: Cell,
-    fault: Option<SimFault>,
-    believed: Option<Iso>,
-    search_s: f64,
+    /// The trial so far, under the configuration it started under (the longest budget); its
+    /// observation is read from `observer` when it is handed on.
+    trial: Observed,
     /// `None` when the trial stopped before observing.
     observer: Option<Observer>,
     /// The budget observed to so far, s.
@@ -132,13 +129,18 @@ impl Observing {
             )
         });
         let fault = session.fault().cloned();
-        Ok(Observing {
+        let trial = Observed {
             config: config.clone(),
             setup,
             cell,
             fault,
             believed,
             search_s,
+            observation: Observation::default(),
+            wall_s: 0.0,
+        };
+        Ok(Observing {
+            trial,
             observer,
             budget_s: 0.0,
             started,
@@ -148,32 +150,33 @@ impl Observing {
     /// Observes on until `t_obs_s` from the observation's start (at most the budget of the
     /// configuration it started under).
     pub fn observe_until(&mut self, t_obs_s: f64, recorder: Option<&mut dyn Recorder>) {
-        self.budget_s = t_obs_s.min(self.config.t_obs_s);
+        let trial = &mut self.trial;
+        self.budget_s = t_obs_s.min(trial.config.t_obs_s);
         let Some(observer) = &mut self.observer else {
             return;
         };
         let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
-        let fault = self.fault.take();
-        let mut session = Session::resume(&mut self.cell, recorder, fault, Phase::Observe);
+        let fault = trial.fault.take();
+        let mut session = Session::resume(&mut trial.cell, recorder, fault, Phase::Observe);
         observer.run_to(&mut session, self.budget_s);
-        self.fault = session.fault().cloned();
+        trial.fault = session.fault().cloned();
     }
 
     /// The trial as it stands, for a trial whose budget ends here: a fork of the cell
     /// ([`Cell::fork`]) with the observation so far, under the configuration with this budget.
     pub fn observed(&self) -> Observed {
-        let observation = self.observation();
+        let trial = &self.trial;
         Observed {
             config: TrialConfig {
                 t_obs_s: self.budget_s,
-                ..self.config.clone()
+                ..trial.config.clone()
             },
-            setup: self.setup.clone(),
-            cell: self.cell.fork(),
-            fault: self.fault.clone(),
-            believed: self.believed,
-            search_s: self.search_s,
-            observation,
+            setup: trial.setup.clone(),
+            cell: trial.cell.fork(),
+            fault: trial.fault.clone(),
+            believed: trial.believed,
+            search_s: trial.search_s,
+            observation: self.observation(),
             wall_s: self.started.elapsed().as_secs_f64(),
         }
     }
@@ -181,20 +184,16 @@ impl Observing {
     /// The trial at the end of its observation.
     pub fn into_observed(self) -> Observed {
         let observation = self.observation();
+        let wall_s = self.started.elapsed().as_secs_f64();
         Observed {
-            config: self.config,
-            setup: self.setup,
-            cell: self.cell,
-            fault: self.fault,
-            believed: self.believed,
-            search_s: self.search_s,
             observation,
-            wall_s: self.started.elapsed().as_secs_f64(),
+            wall_s,
+            ..self.trial
         }
     }
 
     fn observation(&self) -> Observation {
-        let now_s = self.cell.time_s();
+        let now_s = self.trial.cell.time_s();
         (self.observer.as_ref()).map_or_else(Observation::default, |o| o.observation(now_s))
     }
 }
