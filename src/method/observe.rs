@@ -106,6 +106,10 @@ impl Observer {
     /// Observes until `t_obs_s` after the start (nothing if it is there already), recording the
     /// measured TCP pose at every step whose estimated wrench says contact.
     pub fn run_to(&mut self, session: &mut Session, t_obs_s: f64) {
+        let end = Drive::steps_until(t_obs_s, session.dt_s());
+        if self.stopped || end <= self.steps {
+            return;
+        }
         let drive = Drive {
             base_t_hole: self.believed,
             motion: &self.motion,
@@ -113,10 +117,6 @@ impl Observer {
             clearance_m: self.clearance_m,
             duration_s: t_obs_s,
         };
-        let end = drive.steps_until(t_obs_s, session.dt_s());
-        if self.stopped || end <= self.steps {
-            return;
-        }
         let contacts = &mut self.contacts;
         let completed = drive.run_steps(session, &mut self.noise, self.steps..end, |m| {
             if m.contact {

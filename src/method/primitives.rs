@@ -294,12 +294,12 @@ impl Drive<'_> {
         noise: &mut PerturbationState,
         on_step: impl FnMut(&Measurements) -> ControlFlow<()>,
     ) {
-        let steps = self.steps_until(self.duration_s, session.dt_s());
+        let steps = Drive::steps_until(self.duration_s, session.dt_s());
         self.run_steps(session, noise, 0..steps, on_step);
     }
 
     /// The number of physics steps of `dt` in the first `t_s` of the drive.
-    pub fn steps_until(&self, t_s: f64, dt: f64) -> usize {
+    pub fn steps_until(t_s: f64, dt: f64) -> usize {
         (t_s / dt).round() as usize
     }
 
