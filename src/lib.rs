@@ -30,7 +30,8 @@
 //!   and report.html ([`campaign::report`]), gain tuning ([`campaign::tune`]) and the regression
 //!   gate ([`campaign::check`]).
 //!
-//! Below all three: [`pose`] (6-D poses and SE(3)), [`error`], [`files`], [`figures`] (PNG and SVG). The command line lives in
+//! Below all three: [`pose`] (6-D poses and SE(3)), [`error`], [`files`], [`figures`] (PNG and SVG),
+//! [`schedule`] (the order work takes the cores, longest first). The command line lives in
 //! the binary (`src/main.rs`, `src/cli/`) and only parses, calls this library and prints.
 
 pub mod campaign;
@@ -40,4 +41,5 @@ pub mod files;
 pub mod method;
 pub mod pose;
 pub mod replay;
+pub mod schedule;
 pub mod twin;

@@ -21,13 +21,14 @@ use crate::campaign::replays::{self, ReplayWriter, Replays};
 use crate::campaign::scenario::{Condition, Scenario};
 use crate::campaign::sharing::share_observations;
 use crate::error::{Error, Result};
-use crate::method::config::Method;
+use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::manifold::Manifold;
-use crate::method::manifold::cache::{self, BuildProgress};
+use crate::method::manifold::cache::{self, BuildProgress, Wanted};
 use crate::method::seeds;
 use crate::method::session::Recorder;
 use crate::method::trial::{Observing, TrialResult, errored_trial, finish_trial, run_trial};
 use crate::replay::Replay;
+use crate::schedule;
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
 use rayon::prelude::*;
@@ -197,10 +198,11 @@ impl Prepared {
 }
 
 /// Builds the pairs and loads (or builds and caches) the manifolds of `trials`. The missing
-/// manifolds are built side by side: every episode of every build goes to the one pool, so the
-/// cores do not idle at the end of each build while its last episodes run (issue 17). Each file
-/// is the same as when built alone; when builds fail, the first failing pair's error (in the
-/// scenario's order) is returned, after the others were built and cached.
+/// manifolds are built side by side ([`cache::resolve_all`]: every episode of every build goes to
+/// the one pool, the costliest pair's first, so the cores do not idle at the end of each build
+/// while its last episodes run; issue 17). Each file is the same as when built alone; when builds
+/// fail, the first failing pair's error (in the scenario's order) is returned, after the others
+/// were built and cached.
 pub fn prepare(
     scenario: &Scenario,
     trials: &[TrialSpec],
@@ -221,19 +223,19 @@ pub fn prepare(
             registering.push((key, scenario.cell_params_for(cell)));
         }
     }
-    let built: Vec<Result<Manifold>> = registering
-        .par_iter()
-        .map(|(key, params)| {
-            cache::resolve(
-                &pairs[key],
-                &robots[key],
-                &scenario.manifold,
-                params,
-                Some(&options.cache_dir),
-                options.progress,
-            )
+    let wanted: Vec<Wanted> = (registering.iter())
+        .map(|(key, params)| Wanted {
+            pair: &pairs[key],
+            robot: &robots[key],
+            params: params.clone(),
         })
         .collect();
+    let built = cache::resolve_all(
+        &wanted,
+        &scenario.manifold,
+        &options.cache_dir,
+        options.progress,
+    );
     let mut manifolds = BTreeMap::new();
     for ((key, _), manifold) in registering.into_iter().zip(built) {
         manifolds.insert(key, manifold?);
@@ -308,8 +310,9 @@ pub(crate) struct Runner<'a> {
 
 /// Runs `trials` in parallel and hands each record to `on_done` as it finishes (from any thread),
 /// keeping none: memory stays flat however many trials a campaign runs. Trials that observe
-/// alike run their observation once ([`run_shared`]). A stop asked for through `progress` is
-/// seen before each trial.
+/// alike run their observation once ([`run_shared`]), as one piece of work; the pieces start in
+/// the trials' order, round by round, the longest of each round first ([`piece_cost`],
+/// [`crate::schedule`]). A stop asked for through `progress` is seen before each trial.
 fn stream_trials_with(
     scenario: &Scenario,
     prepared: &Prepared,
@@ -322,7 +325,14 @@ fn stream_trials_with(
         Some(_) => share_observations(scenario, trials),
         None => trials.iter().map(|t| vec![*t]).collect(),
     };
-    pieces.par_iter().try_for_each(|piece| {
+    // Trial-major as before (a stopped run holds a like share of each cell), and longest first
+    // within each round of trials: a long piece is not the last of its round to start.
+    let mut costed: Vec<(f64, Vec<TrialSpec>)> = (pieces.into_iter())
+        .map(|p| (piece_cost(scenario, prepared, &p), p))
+        .collect();
+    costed.sort_by(|a, b| (a.1[0].trial.cmp(&b.1[0].trial)).then(b.0.total_cmp(&a.0)));
+    let pieces: Vec<Vec<TrialSpec>> = costed.into_iter().map(|(_, p)| p).collect();
+    schedule::try_in_order(&pieces, |piece| {
         let ran = match runner.sharing {
             Some(replays) if piece.len() > 1 => {
                 run_shared(scenario, prepared, piece, replays, progress, on_done)
@@ -335,6 +345,28 @@ fn stream_trials_with(
         release_freed_memory();
         ran
     })
+}
+
+/// A rough relative cost of a piece of work (trials that share their observation, or one
+/// trial), for the order in which a campaign runs them only (longest first,
+/// [`crate::schedule`]): the simulated seconds it may run at most (the search's limit when it
+/// starts above the hole, the longest observation, each trial's alignment and insertion limit)
+/// times its pair's [`PartPair::relative_step_cost`].
+fn piece_cost(scenario: &Scenario, prepared: &Prepared, piece: &[TrialSpec]) -> f64 {
+    let cells = scenario.cells();
+    let configs: Vec<TrialConfig> = (piece.iter())
+        .map(|t| scenario.trial_config(&cells[t.cell]))
+        .collect();
+    let search = |c: &TrialConfig| match c.start {
+        Start::Above => c.search.limit_s,
+        Start::Partial => 0.0,
+    };
+    let observing = (configs.iter())
+        .map(|c| search(c) + c.t_obs_s)
+        .fold(0.0, f64::max);
+    let after: f64 = configs.iter().map(|c| c.align_s + c.insert_limit_s).sum();
+    let (pair, _, _) = prepared.inputs(&cells[piece[0].cell]);
+    (observing + after) * pair.relative_step_cost()
 }
 
 /// `Err(Stopped)` once a stop has been asked for: the trials that finished are kept.
@@ -609,10 +641,9 @@ pub(crate) fn campaign_with(
 }
 
 /// Puts `trials` in trial-major order (trial 0 of every cell, then trial 1, ...): every cell
-/// advances together, so a stopped run holds a like share of each cell, and the parallel
-/// workers, which start from different ends of the list, run a like mix of methods (a cell-major
-/// list gave one worker the manifold method's cell and the other the direct one's until one was
-/// done). Results do not depend on the order: a trial is a function of its seed.
+/// advances together, so a stopped run holds a like share of each cell. The pieces they run in
+/// keep that order, longest first within each round ([`stream_trials_with`]). Results do not
+/// depend on the order: a trial is a function of its seed.
 fn interleave_cells(trials: &mut [TrialSpec]) {
     trials.sort_by_key(|t| (t.trial, t.cell));
 }

@@ -31,6 +31,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
+use std::sync::Mutex;
 
 /// Everything the generator does, stored in the manifold's metadata.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -310,6 +311,38 @@ pub struct BuildReport {
     pub faults: Vec<(usize, SimFault)>,
 }
 
+/// A reference manifold to build: the pair with its robot and cell, and how to sample it.
+#[derive(Clone, Copy)]
+pub struct BuildJob<'a> {
+    pub pair: &'a PartPair,
+    pub robot: &'a RobotModel,
+    pub params: &'a CellParams,
+    pub config: &'a SamplerConfig,
+    /// Poses kept after downsampling.
+    pub points: usize,
+    pub seed: u64,
+}
+
+impl BuildJob<'_> {
+    /// Refuses a sampler or a point count out of range, before anything runs.
+    fn check(&self) -> Result<()> {
+        self.config.ensure_valid()?;
+        if !(DEFAULT_NORMAL_K + 1..=MAX_POINTS).contains(&self.points) {
+            return Err(Error::Input(format!(
+                "--points {}: expected {} (the normal neighbourhood) to {MAX_POINTS}",
+                self.points,
+                DEFAULT_NORMAL_K + 1
+            )));
+        }
+        Ok(())
+    }
+
+    /// A rough relative cost of one of its episodes, for the order in which they run only.
+    fn episode_cost(&self) -> f64 {
+        self.config.episode_s * self.pair.relative_step_cost()
+    }
+}
+
 /// Builds the reference manifold of `pair`: `config.episodes` episodes in parallel, downsampled to
 /// `points`, normals from the `DEFAULT_NORMAL_K` nearest neighbours. `on_episode` is called as
 /// each episode finishes (for a progress bar).
@@ -322,21 +355,106 @@ pub fn build(
     seed: u64,
     on_episode: &(dyn Fn() + Sync),
 ) -> Result<BuildReport> {
-    config.ensure_valid()?;
-    if !(DEFAULT_NORMAL_K + 1..=MAX_POINTS).contains(&points) {
-        return Err(Error::Input(format!(
-            "--points {points}: expected {} (the normal neighbourhood) to {MAX_POINTS}",
-            DEFAULT_NORMAL_K + 1
-        )));
+    let job = BuildJob {
+        pair,
+        robot,
+        params,
+        config,
+        points,
+        seed,
+    };
+    let mut reports = build_all(&[job], on_episode, |_, report| report);
+    reports.pop().expect("one report per job")
+}
+
+/// Builds several reference manifolds side by side, each as [`build`] does alone, to the byte,
+/// and hands each to `finished` (with its job's index) as soon as its last episode is done; their
+/// results in the order of `jobs`. The episodes of every build go to the pool together, the
+/// costliest pair's first ([`crate::schedule`]), so that no core idles at the end of one build
+/// while another's episodes wait, and a build's downsampling overlaps the others' episodes
+/// (issue 17). A job refused or failed does not stop the others.
+pub fn build_all<R: Send>(
+    jobs: &[BuildJob],
+    on_episode: &(dyn Fn() + Sync),
+    finished: impl Fn(usize, Result<BuildReport>) -> R + Sync,
+) -> Vec<R> {
+    let results: Vec<Mutex<Option<R>>> = jobs.iter().map(|_| Mutex::new(None)).collect();
+    let finish = |j: usize, report: Result<BuildReport>| {
+        let r = finished(j, report);
+        *results[j].lock().expect("no result writer panicked") = Some(r);
+    };
+    let mut episodes = Vec::new();
+    for (j, job) in jobs.iter().enumerate() {
+        match job.check() {
+            Ok(()) => episodes.extend((0..job.config.episodes).map(|e| (j, e))),
+            Err(e) => finish(j, Err(e)),
+        }
     }
-    let episodes: Vec<Episode> = (0..config.episodes)
-        .into_par_iter()
-        .map(|e| {
-            let out = run_episode(pair, robot, params, config, seeds::episode(seed, e));
-            on_episode();
-            out
+    // Longest first; the sort is stable, so a job's episodes keep their order.
+    episodes.sort_by(|a, b| {
+        jobs[b.0]
+            .episode_cost()
+            .total_cmp(&jobs[a.0].episode_cost())
+    });
+    let slots: Vec<EpisodeSlots> = jobs.iter().map(EpisodeSlots::new).collect();
+    crate::schedule::map_in_order(&episodes, |&(j, e)| {
+        let job = &jobs[j];
+        let out = run_episode(
+            job.pair,
+            job.robot,
+            job.params,
+            job.config,
+            seeds::episode(job.seed, e),
+        );
+        on_episode();
+        if let Some(all) = slots[j].put(e, out) {
+            finish(j, all.and_then(|episodes| assemble(job, episodes)));
+        }
+    });
+    results
+        .into_iter()
+        .map(|r| {
+            r.into_inner()
+                .expect("no result writer panicked")
+                .expect("every job finished")
         })
-        .collect::<Result<_>>()?;
+        .collect()
+}
+
+/// A build's episodes as they finish, in any order.
+struct EpisodeSlots {
+    done: Mutex<Vec<Option<Result<Episode>>>>,
+}
+
+impl EpisodeSlots {
+    fn new(job: &BuildJob) -> Self {
+        EpisodeSlots {
+            done: Mutex::new((0..job.config.episodes).map(|_| None).collect()),
+        }
+    }
+
+    /// Puts episode `e`'s result; once it was the last, all of them in episode order (the first
+    /// error in that order, if any).
+    fn put(&self, e: usize, out: Result<Episode>) -> Option<Result<Vec<Episode>>> {
+        let mut done = self.done.lock().expect("no episode writer panicked");
+        done[e] = Some(out);
+        if done.iter().any(Option::is_none) {
+            return None;
+        }
+        let all = std::mem::take(&mut *done);
+        Some(
+            all.into_iter()
+                .map(|o| o.expect("every episode put"))
+                .collect(),
+        )
+    }
+}
+
+/// The manifold of `job` from its episodes (in episode order): refused when too many faulted or
+/// too few poses were recorded; otherwise downsampled, with normals and the recipe in its
+/// metadata.
+fn assemble(job: &BuildJob, episodes: Vec<Episode>) -> Result<BuildReport> {
+    let (pair, config, points, seed) = (job.pair, job.config, job.points, job.seed);
     let faults: Vec<(usize, SimFault)> = episodes
         .iter()
         .enumerate()
@@ -357,7 +475,7 @@ pub fn build(
             "only {} contact poses were recorded: the sampling motion never pressed hard enough \
              (contact threshold {} N)",
             raw.len(),
-            params.sensors.contact_on_n
+            job.params.sensors.contact_on_n
         )));
     }
     let metric = PoseMetric::default();
@@ -473,6 +591,66 @@ mod tests {
             e.contains("1 powered by the contacts") && e.contains("2 powered by the drives"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn builds_side_by_side_are_each_the_build_alone_and_a_refused_one_stops_none() {
+        let pair = |name| {
+            crate::twin::geometry::build_builtin(
+                crate::twin::geometry::builtin_by_name(name).unwrap(),
+                0.5e-3,
+            )
+            .unwrap()
+        };
+        let (cross, key) = (pair("cross"), pair("key"));
+        let robot = crate::twin::robot::urdf::iiwa14().unwrap();
+        let params = CellParams::default();
+        let config = SamplerConfig {
+            episodes: 3,
+            episode_s: 0.4,
+            ..SamplerConfig::default()
+        };
+        let job = |pair, points| BuildJob {
+            pair,
+            robot: &robot,
+            params: &params,
+            config: &config,
+            points,
+            seed: 5,
+        };
+        let jobs = [job(&cross, 20), job(&cross, 0), job(&key, 20)];
+        let together = build_all(&jobs, &|| {}, |j, report| (j, report));
+        assert_eq!(
+            together.iter().map(|(j, _)| *j).collect::<Vec<_>>(),
+            [0, 1, 2]
+        );
+        let refused = together[1].1.as_ref().err().expect("0 points").to_string();
+        assert!(refused.contains("--points 0"), "{refused}");
+        // The episodes, each from its own seed, assembled in episode order.
+        let by_hand: Vec<Episode> = (0..config.episodes)
+            .map(|e| run_episode(&cross, &robot, &params, &config, seeds::episode(5, e)).unwrap())
+            .collect();
+        let by_hand = assemble(&jobs[0], by_hand).expect("builds by hand");
+        let first = together[0].1.as_ref().expect("builds side by side");
+        assert_eq!(first.manifold.points, by_hand.manifold.points);
+        assert!(by_hand.raw_count > 20, "{}", by_hand.raw_count);
+        for (job, (_, report)) in [(jobs[0], &together[0]), (jobs[2], &together[2])] {
+            let alone = build(
+                job.pair,
+                &robot,
+                &params,
+                &config,
+                job.points,
+                job.seed,
+                &|| {},
+            )
+            .expect("builds alone");
+            let report = report.as_ref().expect("builds side by side");
+            assert_eq!(report.raw_count, alone.raw_count);
+            assert_eq!(report.manifold.points, alone.manifold.points);
+            assert_eq!(report.manifold.normals, alone.manifold.normals);
+            assert_eq!(report.manifold.meta, alone.manifold.meta);
+        }
     }
 
     fn flows(source: EnergySource) -> EnergyFlows {

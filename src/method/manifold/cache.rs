@@ -8,7 +8,7 @@
 //! atomically, so concurrent builders (shards on one machine) cannot leave a half-written file.
 
 use super::Manifold;
-use super::build::{SamplerConfig, build};
+use super::build::{BuildJob, SamplerConfig, build_all};
 use super::file;
 use crate::error::{Error, Result};
 use crate::twin::cell::{ARM_PREDICTION_RULE, CellParams};
@@ -128,9 +128,88 @@ pub fn resolve(
         Some(d) => d.to_path_buf(),
         None => default_dir()?,
     };
-    with_recipe(spec, params, |recipe| {
-        load_or_build(pair, robot, recipe, &dir, progress)
-    })
+    let wanted = Wanted {
+        pair,
+        robot,
+        params: params.clone(),
+    };
+    let mut resolved = resolve_all(std::slice::from_ref(&wanted), spec, &dir, progress);
+    resolved.pop().expect("one manifold per pair")
+}
+
+/// A pair whose reference manifold is wanted: its robot and the cell parameters of its sampling.
+pub struct Wanted<'a> {
+    pub pair: &'a PartPair,
+    pub robot: &'a RobotModel,
+    pub params: CellParams,
+}
+
+/// The reference manifolds of `wanted` made as `spec` says, from the cache folder `dir`; the
+/// missing ones are built side by side ([`build_all`]: every episode of every build to the one
+/// pool) and each is cached as soon as it is built. Each file is the one its build gives alone.
+/// One result per pair, in order: a failed build does not stop the others.
+pub fn resolve_all(
+    wanted: &[Wanted],
+    spec: &ManifoldSpec,
+    dir: &Path,
+    progress: &dyn BuildProgress,
+) -> Vec<Result<Manifold>> {
+    let sampler = spec.sampler();
+    let recipe = |w| recipe_of(spec, &sampler, w);
+    let mut out: Vec<Option<Result<Manifold>>> = (wanted.iter())
+        .map(|w| load_cached(w.pair, &recipe(w), dir).transpose())
+        .collect();
+    let missing: Vec<usize> = (0..wanted.len()).filter(|&i| out[i].is_none()).collect();
+    if missing.is_empty() {
+        return out.into_iter().flatten().collect();
+    }
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        let error = || Error::file(dir, format!("cannot create the cache folder: {e}"));
+        return (out.into_iter())
+            .map(|o| o.unwrap_or_else(|| Err(error())))
+            .collect();
+    }
+    let paths: Vec<PathBuf> = (missing.iter())
+        .map(|&i| path(dir, wanted[i].pair, &recipe(&wanted[i])))
+        .collect();
+    let recipes: Vec<Recipe> = missing.iter().map(|&i| recipe(&wanted[i])).collect();
+    let jobs: Vec<BuildJob> = (missing.iter().zip(&recipes))
+        .map(|(&i, r)| BuildJob {
+            pair: wanted[i].pair,
+            robot: wanted[i].robot,
+            params: r.params,
+            config: r.sampler,
+            points: r.points,
+            seed: r.seed,
+        })
+        .collect();
+    for (&i, path) in missing.iter().zip(&paths) {
+        progress.build_started(wanted[i].pair, path, sampler.episodes);
+    }
+    let built = build_all(&jobs, &|| progress.episode_done(), |j, report| {
+        progress.build_finished();
+        let report = report?;
+        file::save(&report.manifold, &paths[j])?;
+        Ok(report.manifold)
+    });
+    for (i, manifold) in missing.into_iter().zip(built) {
+        out[i] = Some(manifold);
+    }
+    out.into_iter().flatten().collect()
+}
+
+/// The recipe `spec` asks for (its sampler `sampler`) for the pair `wanted`.
+fn recipe_of<'a>(
+    spec: &ManifoldSpec,
+    sampler: &'a SamplerConfig,
+    wanted: &'a Wanted,
+) -> Recipe<'a> {
+    Recipe {
+        sampler,
+        points: spec.points,
+        seed: spec.seed,
+        params: &wanted.params,
+    }
 }
 
 /// The reference manifold of `pair` made as `spec` says with the cell `params`, if the cache
@@ -164,34 +243,4 @@ fn load_cached(pair: &PartPair, recipe: &Recipe, dir: &Path) -> Result<Option<Ma
     let m = file::load(&path)?;
     m.check_made_for(pair, &path)?;
     Ok(Some(m))
-}
-
-/// The cached manifold of `pair`, built and cached first when missing.
-fn load_or_build(
-    pair: &PartPair,
-    robot: &RobotModel,
-    recipe: &Recipe,
-    dir: &Path,
-    progress: &dyn BuildProgress,
-) -> Result<Manifold> {
-    if let Some(m) = load_cached(pair, recipe, dir)? {
-        return Ok(m);
-    }
-    let path = path(dir, pair, recipe);
-    std::fs::create_dir_all(dir)
-        .map_err(|e| Error::file(dir, format!("cannot create the cache folder: {e}")))?;
-    progress.build_started(pair, &path, recipe.sampler.episodes);
-    let report = build(
-        pair,
-        robot,
-        recipe.params,
-        recipe.sampler,
-        recipe.points,
-        recipe.seed,
-        &|| progress.episode_done(),
-    );
-    progress.build_finished();
-    let report = report?;
-    file::save(&report.manifold, &path)?;
-    Ok(report.manifold)
 }
