@@ -155,9 +155,8 @@ pub fn resolve_all(
     progress: &dyn BuildProgress,
 ) -> Vec<Result<Manifold>> {
     let sampler = spec.sampler();
-    let recipe = |w| recipe_of(spec, &sampler, w);
     let mut out: Vec<Option<Result<Manifold>>> = (wanted.iter())
-        .map(|w| load_cached(w.pair, &recipe(w), dir).transpose())
+        .map(|w| load_cached(w.pair, &recipe_of(spec, &sampler, &w.params), dir).transpose())
         .collect();
     let missing: Vec<usize> = (0..wanted.len()).filter(|&i| out[i].is_none()).collect();
     if missing.is_empty() {
@@ -169,10 +168,12 @@ pub fn resolve_all(
             .map(|o| o.unwrap_or_else(|| Err(error())))
             .collect();
     }
-    let paths: Vec<PathBuf> = (missing.iter())
-        .map(|&i| path(dir, wanted[i].pair, &recipe(&wanted[i])))
+    let recipes: Vec<Recipe> = (missing.iter())
+        .map(|&i| recipe_of(spec, &sampler, &wanted[i].params))
         .collect();
-    let recipes: Vec<Recipe> = missing.iter().map(|&i| recipe(&wanted[i])).collect();
+    let paths: Vec<PathBuf> = (missing.iter().zip(&recipes))
+        .map(|(&i, r)| path(dir, wanted[i].pair, r))
+        .collect();
     let jobs: Vec<BuildJob> = (missing.iter().zip(&recipes))
         .map(|(&i, r)| BuildJob {
             pair: wanted[i].pair,
@@ -198,17 +199,17 @@ pub fn resolve_all(
     out.into_iter().flatten().collect()
 }
 
-/// The recipe `spec` asks for (its sampler `sampler`) for the pair `wanted`.
+/// The recipe `spec` asks for (its sampler `sampler`) with the cell `params`.
 fn recipe_of<'a>(
     spec: &ManifoldSpec,
     sampler: &'a SamplerConfig,
-    wanted: &'a Wanted,
+    params: &'a CellParams,
 ) -> Recipe<'a> {
     Recipe {
         sampler,
         points: spec.points,
         seed: spec.seed,
-        params: &wanted.params,
+        params,
     }
 }
 
@@ -220,18 +221,8 @@ pub fn cached(
     params: &CellParams,
     dir: &Path,
 ) -> Result<Option<Manifold>> {
-    with_recipe(spec, params, |recipe| load_cached(pair, recipe, dir))
-}
-
-/// Calls `f` with the recipe `spec` asks for with the cell `params`.
-fn with_recipe<T>(spec: &ManifoldSpec, params: &CellParams, f: impl FnOnce(&Recipe) -> T) -> T {
     let sampler = spec.sampler();
-    f(&Recipe {
-        sampler: &sampler,
-        points: spec.points,
-        seed: spec.seed,
-        params,
-    })
+    load_cached(pair, &recipe_of(spec, &sampler, params), dir)
 }
 
 /// The cached manifold of `pair` made by `recipe`, if there is one.
