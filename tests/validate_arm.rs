@@ -79,7 +79,7 @@ fn with_position_projection_the_cross_at_0_1_mm_passes_every_arm_case_within_5_u
 #[test]
 fn the_cross_at_0_1_mm_passes_every_arm_case_within_5_um_on_the_joint_space_contacts() {
     // The default; with rapier's contacts the probing and sampling cases keep 15 and 39 um
-    // (docs/physics.md, "Joint-space contacts").
+    // (docs/journal/2026-11-25.md, "Joint-space contacts").
     let report = cross_at_0_1_mm_within_5_um(&CellParams::default());
     for c in &report.cases[..6] {
         assert!(c.max_penetration_mm <= 0.001, "{c:?}");

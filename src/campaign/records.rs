@@ -1,7 +1,7 @@
 //! `trials.jsonl`, the campaign's records on disk, handled without holding them in memory: a
 //! 10 000-trial folder is read line by line, sorted through an index of (cell, trial, where the
 //! line lies), and summarised by streaming passes ([`TrialsFile`]), so a campaign's memory does
-//! not grow with its number of trials (docs/campaigns.md, "Soak").
+//! not grow with its number of trials (docs/journal/2026-11-26.md, "Soak").
 
 use crate::error::{Error, Result};
 use crate::method::trial::TrialResult;

@@ -469,7 +469,7 @@ fn guarded<T>(work: impl FnOnce() -> Result<T>) -> std::result::Result<T, String
 /// Hands the pages the allocator holds free back to the system, after each trial. glibc keeps
 /// what a trial freed inside its per-thread arenas (about 3 MB each with two workers, while the
 /// live heap between trials is under 1 MB), and fragmentation makes that pile creep up over
-/// thousands of trials; `malloc_trim` returns the free pages (docs/campaigns.md, "Soak").
+/// thousands of trials; `malloc_trim` returns the free pages (docs/journal/2026-11-26.md, "Soak").
 fn release_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: malloc_trim only gives free pages back to the kernel; no live allocation moves.

@@ -6,7 +6,7 @@
 //! uses; unknown fields are errors (with their line), and values are range-checked with errors
 //! that name the field. Units: fields typed by people carry them in their names (`clearances_mm`,
 //! `offset_deg`); gains and sensor parameters are SI as in the code (stiffness N/m on x, y, z and
-//! N m/rad on roll, pitch, yaw, in the TCP frame). The fields are listed in the README.
+//! N m/rad on roll, pitch, yaw, in the TCP frame). The fields are listed in docs/scenarios.md.
 
 use crate::error::{Error, Result};
 use crate::method::config::{

@@ -89,7 +89,7 @@ pub struct TrialConfig {
     pub insert_seat_force_n: f64,
     /// How far above the believed floor the seat condition arms, m: the belief's z uncertainty.
     /// The registration does not observe z (its z error follows the hole's z offset, about
-    /// 1.3 mm deeper: docs/method.md, "The insertion's force"), so the default spans the paper's
+    /// 1.3 mm deeper: docs/method.md, "Why the seat condition looks for a stall"), so the default spans the paper's
     /// 5 mm offset range and that bias with margin.
     pub insert_seat_window_m: f64,
     /// Success when the final tip depth is within this of the floor, m (paper: 2 mm).

@@ -100,7 +100,7 @@ pub enum PaperUpdate {
 pub const DEFAULT_RESTARTS: usize = 8;
 /// Spread of the restarts' initial rotation, deg per axis: about the standard deviation of the
 /// paper's orientation prior U(-5, 5) deg (2.9 deg). Restarts drawn with 1 deg could not leave
-/// the basin of a roll/pitch bias of the nominal pose (README, "Campaign figures").
+/// the basin of a roll/pitch bias of the nominal pose (docs/journal/2026-11-25.md).
 pub const DEFAULT_SIGMA_DEG: f64 = 3.0;
 
 /// Parameters of a registration (in files, fields not given keep their defaults).

@@ -36,7 +36,7 @@ pub const ARM_SOLVER_ITERATIONS: usize = 2;
 /// holds (the peg's contacts only with `arm_contacts = "rapier"`). There, one pass leaves the
 /// contacts of a peg pinched between opposite walls unconverged (the gear at 0.1 mm: 4 of 8
 /// direct trials fault with one pass, none with four); four cost a third of the arm's speed
-/// (docs/physics.md, "The arm at 0.1 mm").
+/// (docs/journal/2026-11-23.md, "The arm at 0.1 mm").
 pub const ARM_PGS_ITERATIONS: usize = 4;
 
 /// The arm cell's floor of the contact prediction distance, m. The distance is otherwise 1.5

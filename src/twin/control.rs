@@ -20,7 +20,7 @@
 //! The offset depends on time only, never on the state, so it cannot destabilise the loop. (An
 //! earlier version slewed the task torque by 1 N m per cycle in every cycle, as franka_ros does;
 //! inside the feedback loop that lag pumped energy into the wrist at the stiff, lightly damped
-//! corners of the Sunrise ranges: docs/physics.md, "The Sunrise gain corners".)
+//! corners of the Sunrise ranges: docs/journal/2026-11-23.md, "The Sunrise gain corners".)
 
 use crate::error::{Error, Result};
 use crate::twin::robot::{Dynamics, GRAVITY_UPRIGHT, Iso, RobotModel};

@@ -1,12 +1,12 @@
 //! The arm's peg contacts solved in joint space, exactly, instead of by rapier's projected
 //! Gauss-Seidel over multibody contact rows: the arm cell's default since 2026-11-26
-//! (`PhysicsParams::arm_contacts`; docs/physics.md, "Joint-space contacts").
+//! (`PhysicsParams::arm_contacts`; docs/journal/2026-11-25.md, "Joint-space contacts").
 //!
 //! Why: the arm has a handful of degrees of freedom while its peg, wedged in a tight bore, has
 //! hundreds of contact rows (about 1 300 contact points per step on the gear at 0.1 mm). rapier
 //! relaxes those rows one by one through the arm's dense inertia; on a wedge that converges
 //! slowly, so its contacts stay soft (a 240 Hz spring, 12-95 um of penetration under the motion
-//! cases of `validate --arm`) and stiffer ones go unstable (docs/physics.md, "The arm at 0.1 mm").
+//! cases of `validate --arm`) and stiffer ones go unstable (docs/journal/2026-11-23.md, "The arm at 0.1 mm").
 //! Here every row acts on the same few joint velocities, so the whole contact problem is a
 //! convex program in `n` unknowns (`n` = the arm's joints), solved to its optimum by Newton's
 //! method, as MuJoCo's primal solver does (E. Todorov, "Convex and analytically-invertible

@@ -51,7 +51,7 @@ pub struct PhysicsParams {
     /// pieces still overlap after the velocity-level solve is moved out. Experimental and off by
     /// default: it takes `validate --arm`'s motion cases at 0.1 mm from 12-43 um to under 2 um
     /// on four built-ins, but it lowers the smoke campaign's manifold success at 0.5 mm from 6/8
-    /// to 1/8 (docs/physics.md, "Position projection"); the arm cell only.
+    /// to 1/8 (docs/journal/2026-11-25.md, "Position projection"); the arm cell only.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub position_projection: bool,
     /// Who solves the arm's peg contacts: an exact Newton solve in joint space

@@ -7,7 +7,7 @@
 //! momentum and its contact impulses (the measured wrench) are what the solver computed; what is
 //! removed is the penetration that rapier's soft contact keeps under a sustained wedge (a spring
 //! of the row's projected mass times omega^2: 12-95 um under a few hundred newtons in the
-//! motion cases of `validate --arm`, docs/physics.md "The arm at 0.1 mm"), which at a 0.1 mm fit
+//! motion cases of `validate --arm`, docs/journal/2026-11-23.md "The arm at 0.1 mm"), which at a 0.1 mm fit
 //! is a fifth of the gap. The arm cell runs it when `PhysicsParams::position_projection` is set.
 //! Experimental: it makes the campaigns' estimates worse and their insertions jam (measured in
 //! docs/physics.md), and the twisted gear's rows can admit no displacement at all.
