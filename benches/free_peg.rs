@@ -8,7 +8,7 @@ use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_mai
 use nalgebra::Isometry3;
 use pegtwin::twin::geometry::{Builtin, build_builtin};
 use pegtwin::twin::physics::PhysicsParams;
-use pegtwin::twin::validate::{FreePegGains, FreePegRig};
+use pegtwin::selfcheck::free_peg::{FreePegGains, FreePegRig};
 
 const STEPS: u64 = 500;
 

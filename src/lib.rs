@@ -42,4 +42,5 @@ pub mod method;
 pub mod pose;
 pub mod replay;
 pub mod schedule;
+pub mod selfcheck;
 pub mod twin;

@@ -3,7 +3,7 @@
 
 use pegtwin::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use pegtwin::twin::control::{ImpedanceGains, JointPositionGains, Mode};
-use pegtwin::twin::diagnostics::{PushTest, measure_stiffness};
+use pegtwin::selfcheck::stiffness::{PushTest, measure_stiffness};
 use pegtwin::twin::energy::EnergySource;
 use pegtwin::twin::geometry::{PartPair, build_builtin, builtin_by_name};
 use pegtwin::twin::physics::ArmContacts;

@@ -191,7 +191,7 @@ fn the_layers_are_used_one_way() {
     let layer = |m: &str| match m.split("::").next().unwrap() {
         "twin" => 1,
         "method" => 2,
-        "replay" => 3,
+        "replay" | "selfcheck" => 3,
         "campaign" => 4,
         _ => 0,
     };
@@ -199,7 +199,7 @@ fn the_layers_are_used_one_way() {
         for d in deps {
             assert!(
                 layer(&d) <= layer(&m) || layer(&m) == 0 && m.is_empty(),
-                "{m} (layer {}) uses {d} (layer {}): the layers are twin <- method <- replay <- campaign",
+                "{m} (layer {}) uses {d} (layer {}): the layers are twin <- method <- replay, selfcheck <- campaign",
                 layer(&m),
                 layer(&d)
             );
@@ -229,14 +229,9 @@ fn the_method_stages_cannot_read_the_truth() {
     for f in library_files() {
         let m = module_of(&f).join("::");
         // The trial sets the experiment up and scores it; the session records the trace; the
-        // arm validation judges the physics, it is no stage of the method; the environment
-        // scores a learned policy and reports the truth beside (never as) its observations.
-        let judges = [
-            "method::trial",
-            "method::session",
-            "method::validate_arm",
-            "method::env",
-        ];
+        // environment scores a learned policy and reports the truth beside (never as) its
+        // observations. (The physics self-checks read the truth too: `selfcheck` is no stage.)
+        let judges = ["method::trial", "method::session", "method::env"];
         if !m.starts_with("method") || judges.contains(&m.as_str()) {
             continue;
         }

@@ -5,20 +5,20 @@
 
 use pegtwin::twin::geometry::{Builtin, build_builtin};
 use pegtwin::twin::physics::PhysicsParams;
-use pegtwin::twin::validate::{FORCE_AGREEMENT, FreePegGains, validate};
+use pegtwin::selfcheck::free_peg::{FORCE_AGREEMENT, FreePegGains, validate};
 
 fn check(builtin: Builtin, clearance_mm: f64) {
     let pair = build_builtin(builtin, clearance_mm * 1e-3).unwrap();
     let report = validate(&pair, &PhysicsParams::default(), FreePegGains::default());
     for case in &report.cases {
         assert!(
-            case.passed,
+            case.verdict.passed,
             "{} at {clearance_mm} mm, {}: expected {}; observed {}; penetration {:.4} mm (limit {:.4}); force error {:.2} %",
             builtin.name(),
-            case.name,
-            case.expected,
-            case.observed,
-            case.max_penetration_mm,
+            case.verdict.name,
+            case.verdict.expected,
+            case.verdict.observed,
+            case.verdict.max_penetration_mm,
             report.penetration_limit_mm,
             case.force_error_pct
         );
@@ -27,7 +27,7 @@ fn check(builtin: Builtin, clearance_mm: f64) {
     let floor = report
         .cases
         .iter()
-        .find(|c| c.name == "floor_press")
+        .find(|c| c.verdict.name == "floor_press")
         .unwrap();
     assert!(
         (floor.force_readout_n[2] - 2.0).abs() < 0.05,

@@ -3,7 +3,7 @@
 
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::SamplerConfig;
-use pegtwin::method::validate_arm::{ArmValidationReport, validate_arm};
+use pegtwin::selfcheck::arm::{ArmValidationReport, validate_arm};
 use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::geometry::{build_builtin, builtin_by_name};
 use pegtwin::twin::physics::ArmContacts;
@@ -20,7 +20,7 @@ fn the_cross_at_1_mm_passes_every_arm_case() {
         &SamplerConfig::default(),
     )
     .unwrap();
-    let names: Vec<&str> = report.cases.iter().map(|c| c.name.as_str()).collect();
+    let names: Vec<&str> = report.cases.iter().map(|c| c.verdict.name.as_str()).collect();
     assert_eq!(
         names,
         [
@@ -35,8 +35,8 @@ fn the_cross_at_1_mm_passes_every_arm_case() {
         ]
     );
     for c in &report.cases {
-        assert!(c.passed, "{}: {} ({:?})", c.name, c.observed, c.fault);
-        assert!(c.steps_per_s > 0.0 && c.max_penetration_mm <= 0.05, "{c:?}");
+        assert!(c.verdict.passed, "{}: {} ({:?})", c.verdict.name, c.verdict.observed, c.fault);
+        assert!(c.verdict.steps_per_s > 0.0 && c.verdict.max_penetration_mm <= 0.05, "{c:?}");
     }
     assert!(report.passed);
     let floor = &report.cases[5];
@@ -58,8 +58,8 @@ fn cross_at_0_1_mm_within_5_um(params: &CellParams) -> ArmValidationReport {
     )
     .unwrap();
     for c in &report.cases {
-        assert!(c.passed, "{}: {} ({:?})", c.name, c.observed, c.fault);
-        assert!(c.max_penetration_mm <= 0.005, "{c:?}");
+        assert!(c.verdict.passed, "{}: {} ({:?})", c.verdict.name, c.verdict.observed, c.fault);
+        assert!(c.verdict.max_penetration_mm <= 0.005, "{c:?}");
     }
     assert!(report.passed);
     report
@@ -82,7 +82,7 @@ fn the_cross_at_0_1_mm_passes_every_arm_case_within_5_um_on_the_joint_space_cont
     // (docs/journal/2026-11-25.md, "Joint-space contacts").
     let report = cross_at_0_1_mm_within_5_um(&CellParams::default());
     for c in &report.cases[..6] {
-        assert!(c.max_penetration_mm <= 0.001, "{c:?}");
+        assert!(c.verdict.max_penetration_mm <= 0.001, "{c:?}");
     }
     assert_eq!(report.physics.arm_contacts, ArmContacts::JointSpace);
 }

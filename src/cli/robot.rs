@@ -4,7 +4,7 @@ use clap::{Args, Subcommand};
 use pegtwin::error::{Error, Result};
 use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::control::ImpedanceGains;
-use pegtwin::twin::diagnostics::{AxisStiffness, PushTest, measure_stiffness};
+use pegtwin::selfcheck::stiffness::{AxisStiffness, PushTest, measure_stiffness};
 use pegtwin::twin::geometry::{self, build_builtin, builtin_by_name};
 use pegtwin::twin::robot::spec::RobotSpec;
 use pegtwin::twin::robot::urdf::{iiwa14, load};

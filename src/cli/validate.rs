@@ -4,9 +4,9 @@ use super::ValidateArgs;
 use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::SamplerConfig;
-use pegtwin::method::validate_arm::{ArmValidationReport, validate_arm};
 use pegtwin::twin::physics::{ArmContacts, PhysicsParams};
-use pegtwin::twin::validate::{FreePegGains, ValidationReport, validate};
+use pegtwin::selfcheck::arm::{ArmValidationReport, validate_arm};
+use pegtwin::selfcheck::free_peg::{FreePegGains, ValidationReport, validate};
 use serde::Serialize;
 
 /// Runs the free-peg or the arm validation; exit 0 only when every case is as expected.
@@ -60,7 +60,7 @@ fn print_arm_validation(r: &ArmValidationReport) {
         r.geometry,
         r.clearance_mm,
         r.penetration_limit_mm,
-        r.robot,
+        r.rig.robot,
         r.physics.solver_iterations,
         r.physics.pgs_iterations,
         match (r.physics.position_projection, r.physics.arm_contacts) {
@@ -71,19 +71,20 @@ fn print_arm_validation(r: &ArmValidationReport) {
         }
     );
     for c in &r.cases {
+        let v = &c.verdict;
         println!(
             "{} {:<18} pen {:.4} mm  peak |F| {:.1} N  |T| {:.2} N m  {:.0} steps/s  ({} gains)",
-            if c.passed { "PASS" } else { "FAIL" },
-            c.name,
-            c.max_penetration_mm,
+            if v.passed { "PASS" } else { "FAIL" },
+            v.name,
+            v.max_penetration_mm,
             c.peak_force_n,
             c.peak_torque_nm,
-            c.steps_per_s,
+            v.steps_per_s,
             c.gains
         );
         println!(
             "     expected: {}\n     observed: {}",
-            c.expected, c.observed
+            v.expected, v.observed
         );
         if let Some(f) = &c.fault {
             println!("     sim_fault at {:.3} s: {}", f.time_s, f.reason);
@@ -100,20 +101,21 @@ fn print_validation(r: &ValidationReport) {
         r.physics.dt_s * 1e3
     );
     for c in &r.cases {
+        let v = &c.verdict;
         println!(
             "{} {:<18} pen {:.4} mm  F_solver ({:+.3}, {:+.3}, {:+.3}) N  momentum err {:.2} %  {:.0} steps/s",
-            if c.passed { "PASS" } else { "FAIL" },
-            c.name,
-            c.max_penetration_mm,
+            if v.passed { "PASS" } else { "FAIL" },
+            v.name,
+            v.max_penetration_mm,
             c.force_readout_n[0],
             c.force_readout_n[1],
             c.force_readout_n[2],
             c.force_error_pct,
-            c.steps_per_s
+            v.steps_per_s
         );
         println!(
             "     expected: {}\n     observed: {}",
-            c.expected, c.observed
+            v.expected, v.observed
         );
     }
     println!("{}", verdict(r.passed));

@@ -4,8 +4,7 @@
 //! Every stage drives the cell through a [`session::Session`], which lends it the real robot's
 //! ports and nothing of the simulation's truth. [`env`] lends the cell to a learned
 //! policy, step by step (the Python package's Gymnasium environment). [`request`] takes a trial's arguments as people
-//! type them (the command line, the Python package). [`validate_arm`] checks the physics under the
-//! method's gains and primitives (`pegtwin validate --arm`).
+//! type them (the command line, the Python package).
 
 pub mod config;
 pub mod env;
@@ -19,4 +18,3 @@ pub mod search;
 pub mod seeds;
 pub mod session;
 pub mod trial;
-pub mod validate_arm;

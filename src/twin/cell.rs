@@ -77,7 +77,7 @@ impl Default for CellParams {
             controller: ControllerParams::default(),
             sensors: SensorParams::default(),
             hole_xy_m: [0.55, 0.0],
-            peg_mass_kg: crate::twin::validate::FREE_PEG_MASS_KG,
+            peg_mass_kg: BUILTIN_PEG_MASS_KG,
         }
     }
 }
@@ -112,6 +112,8 @@ impl CellParams {
     }
 }
 
+/// Mass of a built-in peg with its holder, kg (the free-peg self-check holds every peg at it).
+pub const BUILTIN_PEG_MASS_KG: f64 = 0.3;
 /// The heaviest peg with its holder, kg: the iiwa 14's rated payload.
 pub const MAX_PEG_MASS_KG: f64 = 14.0;
 

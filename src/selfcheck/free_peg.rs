@@ -1,11 +1,10 @@
-//! `pegtwin validate`: a self-check a user runs on a peg/hole pair before trusting a campaign.
-//!
-//! A free peg (the peg alone, as a rigid body) is held by a 6-DoF Cartesian impedance at its tip
-//! and driven through a fixed matrix of cases. Each case states the outcome it expects and
-//! reports what it observed, the largest exact penetration (f64 separating axes, see
-//! `twin::physics::penetration`), the contact force read from the solver against a momentum check
-//! (m dv/dt minus the applied forces), and the physics speed in steps per second.
+//! `pegtwin validate`: the contact solver checked in isolation. A free peg (the peg alone, as a
+//! rigid body) is held by a 6-DoF Cartesian impedance at its tip and driven through a fixed
+//! matrix of cases; besides the shared [`Verdict`], each case reports the contact force read
+//! from the solver against a momentum check (m dv/dt minus the applied forces).
 
+use super::{CaseReport, Judgement, Report, Verdict, penetration_limit_m};
+use crate::twin::cell::BUILTIN_PEG_MASS_KG;
 use crate::twin::geometry::{PartPair, Seat};
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::physics::{
@@ -16,10 +15,8 @@ use rapier3d::prelude::{ColliderHandle, PhysicsWorld, RigidBodyHandle};
 use serde::Serialize;
 use std::time::Instant;
 
-/// Mass of the free peg with its holder, kg.
-pub const FREE_PEG_MASS_KG: f64 = 0.3;
-/// Largest exact penetration allowed, as a fraction of the gap on each side (c/2).
-pub const PENETRATION_FRACTION: f64 = 0.10;
+/// Mass of the free peg with its holder, kg: a built-in peg's, whatever the pair.
+pub const FREE_PEG_MASS_KG: f64 = BUILTIN_PEG_MASS_KG;
 /// Largest difference between the solver's contact force and the momentum check, fraction.
 pub const FORCE_AGREEMENT: f64 = 0.02;
 /// Time over which the orientation target turns upright, seconds.
@@ -166,15 +163,11 @@ impl FreePegRig {
     }
 }
 
-/// The result of one validation case.
+/// The result of one free-peg case.
 #[derive(Clone, Debug, Serialize)]
-pub struct CaseReport {
-    pub name: String,
-    pub expected: String,
-    pub observed: String,
-    pub outcome_ok: bool,
-    pub max_penetration_mm: f64,
-    pub penetration_ok: bool,
+pub struct FreePegCase {
+    #[serde(flatten)]
+    pub verdict: Verdict,
     /// Contact force from the solver, averaged over the final settled window, N.
     pub force_readout_n: [f64; 3],
     /// Contact force from the momentum balance over the same window, N.
@@ -182,25 +175,26 @@ pub struct CaseReport {
     /// |readout - momentum| / |momentum|, percent.
     pub force_error_pct: f64,
     pub force_ok: bool,
-    pub steps_per_s: f64,
-    pub passed: bool,
 }
 
-/// The whole validation.
-#[derive(Clone, Debug, Serialize)]
-pub struct ValidationReport {
-    pub geometry: String,
-    pub clearance_mm: f64,
-    pub penetration_limit_mm: f64,
-    pub physics: PhysicsParams,
-    pub gains: FreePegGains,
-    pub cases: Vec<CaseReport>,
-    pub passed: bool,
+impl CaseReport for FreePegCase {
+    fn verdict(&self) -> &Verdict {
+        &self.verdict
+    }
 }
+
+/// What the free-peg rig holds fixed: its impedance.
+#[derive(Clone, Debug, Serialize)]
+pub struct FreePegSetup {
+    pub gains: FreePegGains,
+}
+
+/// The whole free-peg validation of a pair.
+pub type ValidationReport = Report<FreePegSetup, FreePegCase>;
 
 /// Judges a run from the final tip pose, the lowest tip z seen (m) and the settled contact force
 /// (N): whether the outcome is as expected, and what was observed.
-type Judge = Box<dyn Fn(&Isometry3<f64>, f64, &Vector3<f64>) -> (bool, String)>;
+type Judge = Box<dyn Fn(&Isometry3<f64>, f64, &Vector3<f64>) -> Judgement>;
 
 /// How a case drives the peg and judges it.
 struct Case {
@@ -422,7 +416,7 @@ fn run_case(
     gains: FreePegGains,
     probe: &PenetrationProbe,
     limit_m: f64,
-) -> CaseReport {
+) -> FreePegCase {
     let mut rig = FreePegRig::new(pair, params, &case.start, gains);
     let steps = (case.duration_s / params.dt_s).round() as usize;
     let mut max_pen: f64 = 0.0;
@@ -449,23 +443,16 @@ fn run_case(
     let n = SETTLE_WINDOW_STEPS.min(steps) as f64;
     let (readout, momentum) = (readout / n, momentum / n);
     let tip = rig.tip_pose();
-    let (outcome_ok, observed) = (case.judge)(&tip, min_z, &readout);
+    let judgement = (case.judge)(&tip, min_z, &readout);
     let force_error = (readout - momentum).norm() / momentum.norm().max(1e-9);
     let force_ok = force_error <= FORCE_AGREEMENT;
-    let penetration_ok = max_pen <= limit_m;
-    CaseReport {
-        name: case.name.into(),
-        expected: case.expected.clone(),
-        observed,
-        outcome_ok,
-        max_penetration_mm: max_pen * 1e3,
-        penetration_ok,
+    let speed = steps as f64 / step_time;
+    FreePegCase {
+        verdict: Verdict::new(case.name, &case.expected, judgement, (max_pen, limit_m), speed, force_ok),
         force_readout_n: readout.into(),
         force_momentum_n: momentum.into(),
         force_error_pct: force_error * 100.0,
         force_ok,
-        steps_per_s: steps as f64 / step_time,
-        passed: outcome_ok && penetration_ok && force_ok,
     }
 }
 
@@ -489,19 +476,11 @@ fn rig_params(pair: &PartPair, params: &PhysicsParams, gains: FreePegGains) -> P
 /// Runs the whole matrix on a pair (at [`rig_params`]).
 pub fn validate(pair: &PartPair, params: &PhysicsParams, gains: FreePegGains) -> ValidationReport {
     let probe = PenetrationProbe::new(&pair.hole, &Isometry3::identity());
-    let limit_m = PENETRATION_FRACTION * pair.clearance_m / 2.0;
+    let limit_m = penetration_limit_m(pair.clearance_m);
     let params = &rig_params(pair, params, gains);
-    let reports: Vec<CaseReport> = cases(pair, &probe, &gains)
+    let reports: Vec<FreePegCase> = cases(pair, &probe, &gains)
         .iter()
         .map(|c| run_case(c, pair, params, gains, &probe, limit_m))
         .collect();
-    ValidationReport {
-        geometry: pair.name.clone(),
-        clearance_mm: pair.clearance_mm(),
-        penetration_limit_mm: limit_m * 1e3,
-        physics: params.clone(),
-        gains,
-        passed: reports.iter().all(|r| r.passed),
-        cases: reports,
-    }
+    Report::new(pair, params.clone(), FreePegSetup { gains }, reports)
 }

@@ -2,14 +2,15 @@
 //! iiwa 14's flange, driven through the Cartesian impedance controller at the gains of the trial
 //! phases (observation, alignment, insertion) and of the manifold sampler (paper IV-B, IV-C, V-A).
 //!
-//! The free-peg `validate` (`twin::validate`) holds a peg of 0.3 kg with 10 N m/rad and checks
+//! The free-peg `validate` ([`super::free_peg`]) holds a peg of 0.3 kg with 10 N m/rad and checks
 //! the contact solver in isolation; the arm adds the articulated inertia of seven links, the
-//! controller and the trials' stiffer rotations. Each case states the outcome it expects and
-//! reports what it observed, the largest exact penetration (f64 separating axes, checked every
-//! [`PENETRATION_CHECK_STEPS`] steps), the peak true contact force and torque, any `sim_fault`
-//! with its reason, and the physics speed. A case passes when its outcome is as expected, no
-//! fault stopped it and the penetration stays within [`PENETRATION_FRACTION`] of c/2.
+//! controller and the trials' stiffer rotations. Besides the shared [`Verdict`] (its penetration
+//! checked every [`PENETRATION_CHECK_STEPS`] steps), each case reports the peak true contact force
+//! and torque and any `sim_fault` with its reason. A case passes when its outcome is as expected,
+//! no fault stopped it and the penetration stays within its bar.
 
+use super::free_peg::lift_until_free;
+use super::{CaseReport, Judgement, Report, Verdict, penetration_limit_m};
 use crate::error::Result;
 use crate::method::config::TrialConfig;
 use crate::method::manifold::build::SamplerConfig;
@@ -20,10 +21,8 @@ use crate::pose::Iso;
 use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose};
 use crate::twin::control::{ControllerParams, ImpedanceGains};
 use crate::twin::geometry::{PartPair, Seat};
-use crate::twin::physics::PhysicsParams;
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::robot::RobotModel;
-use crate::twin::validate::{PENETRATION_FRACTION, lift_until_free};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 use std::ops::ControlFlow;
@@ -45,41 +44,37 @@ const SPRING_AGREEMENT: f64 = 0.05;
 /// twists the peg into the walls.
 const PROBE_TWIST_RAD: f64 = 0.05;
 
-/// The result of one case.
+/// The result of one arm case (its speed: the cell with its controller and sensors).
 #[derive(Clone, Debug, Serialize)]
-pub struct ArmCaseReport {
-    pub name: String,
+pub struct ArmCase {
+    #[serde(flatten)]
+    pub verdict: Verdict,
     /// Which gains drove the peg.
     pub gains: String,
-    pub expected: String,
-    pub observed: String,
-    pub outcome_ok: bool,
     /// The physics fault that stopped the case, if one did.
     pub fault: Option<SimFault>,
-    pub max_penetration_mm: f64,
-    pub penetration_ok: bool,
     /// Largest true contact force on the peg, N.
     pub peak_force_n: f64,
     /// Largest true contact torque on the peg about its tip, N m.
     pub peak_torque_nm: f64,
-    /// Physics steps per second of wall time (the cell with its controller and sensors).
-    pub steps_per_s: f64,
-    pub passed: bool,
+}
+
+impl CaseReport for ArmCase {
+    fn verdict(&self) -> &Verdict {
+        &self.verdict
+    }
+}
+
+/// What the arm rig holds fixed: the robot and its controller.
+#[derive(Clone, Debug, Serialize)]
+pub struct ArmSetup {
+    /// The robot's name (its URDF's `<robot name>`).
+    pub robot: String,
+    pub controller: ControllerParams,
 }
 
 /// The whole arm validation of a pair.
-#[derive(Clone, Debug, Serialize)]
-pub struct ArmValidationReport {
-    pub geometry: String,
-    /// The robot's name (its URDF's `<robot name>`).
-    pub robot: String,
-    pub clearance_mm: f64,
-    pub penetration_limit_mm: f64,
-    pub physics: PhysicsParams,
-    pub controller: ControllerParams,
-    pub cases: Vec<ArmCaseReport>,
-    pub passed: bool,
-}
+pub type ArmValidationReport = Report<ArmSetup, ArmCase>;
 
 /// The settled state a case is judged on, all in the hole frame.
 struct Settled {
@@ -94,7 +89,7 @@ struct Settled {
 }
 
 /// Judges a case from its settled state: whether the outcome is as expected, and what was seen.
-type Judge = Box<dyn Fn(&Settled) -> (bool, String)>;
+type Judge = Box<dyn Fn(&Settled) -> Judgement>;
 
 /// How a case moves the impedance target.
 enum Motion {
@@ -174,21 +169,16 @@ pub fn validate_arm(
 ) -> Result<ArmValidationReport> {
     let base_t_hole = nominal_hole_pose(pair, params);
     let probe = PenetrationProbe::new(&pair.hole, &base_t_hole);
-    let limit_m = PENETRATION_FRACTION * pair.clearance_m / 2.0;
+    let limit_m = penetration_limit_m(pair.clearance_m);
     let mut reports = Vec::new();
     for case in cases(pair, &probe, &base_t_hole, config, sampler) {
         reports.push(run_case(&case, pair, robot, params, &probe, limit_m)?);
     }
-    Ok(ArmValidationReport {
-        geometry: pair.name.clone(),
+    let setup = ArmSetup {
         robot: robot.name.clone(),
-        clearance_mm: pair.clearance_mm(),
-        penetration_limit_mm: limit_m * 1e3,
-        physics: params.physics.clone(),
         controller: params.controller.clone(),
-        passed: reports.iter().all(|r| r.passed),
-        cases: reports,
-    })
+    };
+    Ok(Report::new(pair, params.physics.clone(), setup, reports))
 }
 
 fn run_case(
@@ -198,7 +188,7 @@ fn run_case(
     params: &CellParams,
     probe: &PenetrationProbe,
     limit_m: f64,
-) -> Result<ArmCaseReport> {
+) -> Result<ArmCase> {
     let base_t_hole = nominal_hole_pose(pair, params);
     let start = base_t_hole * case.start;
     let mut cell = Cell::new(
@@ -238,21 +228,15 @@ fn run_case(
         target,
     };
     let (outcome_ok, observed) = (case.judge)(&settled);
-    let outcome_ok = outcome_ok && fault.is_none();
-    let penetration_ok = monitor.max_penetration_m <= limit_m;
-    Ok(ArmCaseReport {
-        name: case.name.into(),
+    let judgement = (outcome_ok && fault.is_none(), observed);
+    let penetration = (monitor.max_penetration_m, limit_m);
+    let speed = monitor.steps as f64 / physics_s.max(1e-9);
+    Ok(ArmCase {
+        verdict: Verdict::new(case.name, &case.expected, judgement, penetration, speed, true),
         gains: case.gains_name.into(),
-        expected: case.expected.clone(),
-        observed,
-        outcome_ok,
-        passed: outcome_ok && penetration_ok,
         fault,
-        max_penetration_mm: monitor.max_penetration_m * 1e3,
-        penetration_ok,
         peak_force_n: monitor.peak_force_n,
         peak_torque_nm: monitor.peak_torque_nm,
-        steps_per_s: monitor.steps as f64 / physics_s.max(1e-9),
     })
 }
 
