@@ -6,9 +6,9 @@
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Isometry3;
+use pegtwin::selfcheck::free_peg::{FreePegGains, FreePegRig};
 use pegtwin::twin::geometry::{Builtin, build_builtin};
 use pegtwin::twin::physics::PhysicsParams;
-use pegtwin::selfcheck::free_peg::{FreePegGains, FreePegRig};
 
 const STEPS: u64 = 500;
 

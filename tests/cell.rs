@@ -1,9 +1,9 @@
 //! The robot cell end to end: static stiffness under impedance, the estimated wrench against the
 //! physics' contact force, insertion at 0.1 mm clearance, stalling when misaligned, mode switches.
 
+use pegtwin::selfcheck::stiffness::{PushTest, measure_stiffness};
 use pegtwin::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use pegtwin::twin::control::{ImpedanceGains, JointPositionGains, Mode};
-use pegtwin::selfcheck::stiffness::{PushTest, measure_stiffness};
 use pegtwin::twin::energy::EnergySource;
 use pegtwin::twin::geometry::{PartPair, build_builtin, builtin_by_name};
 use pegtwin::twin::physics::ArmContacts;

@@ -38,10 +38,13 @@ fn module_of(file: &Path) -> Vec<String> {
     parts
 }
 
-/// The source without comments (line comments only; the crate has no block comments in code).
+/// The library's code without comments (line comments only; the crate has no block comments in
+/// code) and without its unit tests (a file's `#[cfg(test)] mod tests`, always last, whose
+/// `super::` is the file itself).
 fn code(file: &Path) -> String {
-    std::fs::read_to_string(file)
-        .unwrap()
+    let text = std::fs::read_to_string(file).unwrap();
+    let library = text.split("#[cfg(test)]").next().unwrap();
+    library
         .lines()
         .map(|l| l.split("//").next().unwrap())
         .collect::<Vec<_>>()
@@ -76,10 +79,28 @@ fn expand(tree: &str) -> Vec<String> {
         .collect()
 }
 
-/// The paths a file names through `crate::`, `super::` and `self::`, made absolute.
-fn referenced_paths(file: &Path) -> Vec<Vec<String>> {
-    let me = module_of(file);
-    let text = code(file);
+/// Every path written inline from `root` (`crate::` or `super::`): `crate::a::B` in an
+/// expression or a type, `super::x::f()`, `super::super::y` (taken whole, from its first
+/// `super`).
+fn inline_paths(text: &str, root: &str) -> Vec<String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::new();
+    for (at, _) in text.match_indices(root) {
+        if at > 0 && (bytes[at - 1].is_ascii_alphanumeric() || matches!(bytes[at - 1], b'_' | b':'))
+        {
+            continue;
+        }
+        let end = text[at..]
+            .find(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+            .map_or(text.len(), |e| at + e);
+        out.push(text[at..end].trim_end_matches(':').to_string());
+    }
+    out
+}
+
+/// The paths the code `text` of module `me` names through `crate::` and `super::`, in `use`
+/// trees and inline, made absolute.
+fn referenced_paths(me: &[String], text: &str) -> Vec<Vec<String>> {
     let mut raw = Vec::new();
     for stmt in text.split(';') {
         if let Some(at) = stmt.find("use ") {
@@ -89,16 +110,8 @@ fn referenced_paths(file: &Path) -> Vec<Vec<String>> {
             }
         }
     }
-    let bytes = text.as_bytes();
-    for (at, _) in text.match_indices("crate::") {
-        if at > 0 && (bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_') {
-            continue;
-        }
-        let end = text[at..]
-            .find(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
-            .map_or(text.len(), |e| at + e);
-        raw.push(text[at..end].to_string());
-    }
+    raw.extend(inline_paths(text, "crate::"));
+    raw.extend(inline_paths(text, "super::"));
     raw.into_iter()
         .filter_map(|p| {
             let segs: Vec<String> = p.split("::").map(String::from).collect();
@@ -120,14 +133,15 @@ fn referenced_paths(file: &Path) -> Vec<Vec<String>> {
         .collect()
 }
 
-/// Module -> the modules it names (the longest module prefix of each path), itself excluded.
-fn module_graph() -> BTreeMap<String, BTreeSet<String>> {
-    let files = library_files();
-    let modules: BTreeSet<Vec<String>> = files.iter().map(|f| module_of(f)).collect();
+type Graph = BTreeMap<String, BTreeSet<String>>;
+
+/// Module -> the modules it names (the longest module prefix of each path), itself and its
+/// ancestors excluded, from each module's path and code.
+fn graph_of(sources: &[(Vec<String>, String)]) -> Graph {
+    let modules: BTreeSet<&Vec<String>> = sources.iter().map(|(m, _)| m).collect();
     let mut graph = BTreeMap::new();
-    for f in &files {
-        let me = module_of(f);
-        let deps: BTreeSet<String> = referenced_paths(f)
+    for (me, text) in sources {
+        let deps: BTreeSet<String> = referenced_paths(me, text)
             .into_iter()
             .filter_map(|p| {
                 (1..=p.len())
@@ -135,7 +149,7 @@ fn module_graph() -> BTreeMap<String, BTreeSet<String>> {
                     .map(|n| p[..n].to_vec())
                     .find(|m| modules.contains(m))
             })
-            .filter(|m| *m != me && !me.starts_with(m))
+            .filter(|m| m != me && !me.starts_with(m))
             .map(|m| m.join("::"))
             .collect();
         graph.insert(me.join("::"), deps);
@@ -143,14 +157,20 @@ fn module_graph() -> BTreeMap<String, BTreeSet<String>> {
     graph
 }
 
-#[test]
-fn the_module_graph_has_no_cycle() {
-    let graph = module_graph();
-    assert!(graph.len() > 30, "found {} modules", graph.len());
-    // Depth-first search with colours; report the first cycle found.
+/// The library's module graph.
+fn module_graph() -> Graph {
+    let sources: Vec<(Vec<String>, String)> = library_files()
+        .iter()
+        .map(|f| (module_of(f), code(f)))
+        .collect();
+    graph_of(&sources)
+}
+
+/// The first cycle of `graph` (depth-first search with colours), as its modules in order.
+fn find_cycle(graph: &Graph) -> Option<Vec<String>> {
     fn visit<'a>(
         m: &'a str,
-        graph: &'a BTreeMap<String, BTreeSet<String>>,
+        graph: &'a Graph,
         state: &mut BTreeMap<&'a str, u8>,
         stack: &mut Vec<&'a str>,
     ) -> Option<Vec<String>> {
@@ -176,14 +196,55 @@ fn the_module_graph_has_no_cycle() {
         None
     }
     let mut state = BTreeMap::new();
-    for m in graph.keys() {
-        let cycle = visit(m, &graph, &mut state, &mut Vec::new());
-        assert!(
-            cycle.is_none(),
-            "import cycle: {}",
-            cycle.unwrap().join(" -> ")
-        );
-    }
+    graph
+        .keys()
+        .find_map(|m| visit(m, graph, &mut state, &mut Vec::new()))
+}
+
+#[test]
+fn the_module_graph_has_no_cycle() {
+    let graph = module_graph();
+    assert!(graph.len() > 30, "found {} modules", graph.len());
+    let cycle = find_cycle(&graph);
+    assert!(
+        cycle.is_none(),
+        "import cycle: {}",
+        cycle.unwrap().join(" -> ")
+    );
+}
+
+#[test]
+fn a_circle_made_only_of_inline_paths_is_found() {
+    let module = |path: &str, code: &str| {
+        let path = path.split("::").map(String::from).collect();
+        (path, code.to_string())
+    };
+    // As `geometry::mesh` and `geometry::stack` were: neither has a `use` of the other.
+    let mut sources = vec![
+        module("twin::geometry", "pub mod mesh; pub mod stack;"),
+        module(
+            "twin::geometry::mesh",
+            "fn f(s: &Soup) { let p = super::stack::cut(s); }",
+        ),
+        module(
+            "twin::geometry::stack",
+            "pub fn cut(s: &super::mesh::Soup) -> Vec<crate::twin::geometry::P3> { todo!() }",
+        ),
+    ];
+    let cycle = find_cycle(&graph_of(&sources)).expect("the circle is found");
+    assert_eq!(cycle.len(), 3, "{cycle:?}");
+    assert!(cycle.contains(&"twin::geometry::mesh".to_string()));
+    assert!(cycle.contains(&"twin::geometry::stack".to_string()));
+    // Through `crate::` and two levels of `super::` as well; and gone once one side is cut.
+    sources.push(module(
+        "twin::cell",
+        "fn g() { super::super::twin::geometry::mesh::f(); }",
+    ));
+    sources[1].1 = "fn f() -> crate::twin::cell::Cell { todo!() }".into();
+    let cycle = find_cycle(&graph_of(&sources)).expect("the longer circle is found");
+    assert!(cycle.contains(&"twin::cell".to_string()), "{cycle:?}");
+    sources[1].1 = "fn f() {}".into();
+    assert_eq!(find_cycle(&graph_of(&sources)), None);
 }
 
 #[test]

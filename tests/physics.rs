@@ -3,9 +3,9 @@
 //! The full matrix (five built-ins x four clearances) is `pegtwin validate`; here the tightest
 //! clearance for every built-in and the loosest for the reference geometry.
 
+use pegtwin::selfcheck::free_peg::{FORCE_AGREEMENT, FreePegGains, validate};
 use pegtwin::twin::geometry::{Builtin, build_builtin};
 use pegtwin::twin::physics::PhysicsParams;
-use pegtwin::selfcheck::free_peg::{FORCE_AGREEMENT, FreePegGains, validate};
 
 fn check(builtin: Builtin, clearance_mm: f64) {
     let pair = build_builtin(builtin, clearance_mm * 1e-3).unwrap();

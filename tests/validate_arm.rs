@@ -20,7 +20,11 @@ fn the_cross_at_1_mm_passes_every_arm_case() {
         &SamplerConfig::default(),
     )
     .unwrap();
-    let names: Vec<&str> = report.cases.iter().map(|c| c.verdict.name.as_str()).collect();
+    let names: Vec<&str> = report
+        .cases
+        .iter()
+        .map(|c| c.verdict.name.as_str())
+        .collect();
     assert_eq!(
         names,
         [
@@ -35,8 +39,15 @@ fn the_cross_at_1_mm_passes_every_arm_case() {
         ]
     );
     for c in &report.cases {
-        assert!(c.verdict.passed, "{}: {} ({:?})", c.verdict.name, c.verdict.observed, c.fault);
-        assert!(c.verdict.steps_per_s > 0.0 && c.verdict.max_penetration_mm <= 0.05, "{c:?}");
+        assert!(
+            c.verdict.passed,
+            "{}: {} ({:?})",
+            c.verdict.name, c.verdict.observed, c.fault
+        );
+        assert!(
+            c.verdict.steps_per_s > 0.0 && c.verdict.max_penetration_mm <= 0.05,
+            "{c:?}"
+        );
     }
     assert!(report.passed);
     let floor = &report.cases[5];
@@ -58,7 +69,11 @@ fn cross_at_0_1_mm_within_5_um(params: &CellParams) -> ArmValidationReport {
     )
     .unwrap();
     for c in &report.cases {
-        assert!(c.verdict.passed, "{}: {} ({:?})", c.verdict.name, c.verdict.observed, c.fault);
+        assert!(
+            c.verdict.passed,
+            "{}: {} ({:?})",
+            c.verdict.name, c.verdict.observed, c.fault
+        );
         assert!(c.verdict.max_penetration_mm <= 0.005, "{c:?}");
     }
     assert!(report.passed);

@@ -2,9 +2,9 @@
 
 use clap::{Args, Subcommand};
 use pegtwin::error::{Error, Result};
+use pegtwin::selfcheck::stiffness::{AxisStiffness, PushTest, measure_stiffness};
 use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::control::ImpedanceGains;
-use pegtwin::selfcheck::stiffness::{AxisStiffness, PushTest, measure_stiffness};
 use pegtwin::twin::geometry::{self, build_builtin, builtin_by_name};
 use pegtwin::twin::robot::spec::RobotSpec;
 use pegtwin::twin::robot::urdf::{iiwa14, load};

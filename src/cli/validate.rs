@@ -4,9 +4,9 @@ use super::ValidateArgs;
 use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::SamplerConfig;
-use pegtwin::twin::physics::{ArmContacts, PhysicsParams};
 use pegtwin::selfcheck::arm::{ArmValidationReport, validate_arm};
 use pegtwin::selfcheck::free_peg::{FreePegGains, ValidationReport, validate};
+use pegtwin::twin::physics::{ArmContacts, PhysicsParams};
 use serde::Serialize;
 
 /// Runs the free-peg or the arm validation; exit 0 only when every case is as expected.

@@ -232,7 +232,14 @@ fn run_case(
     let penetration = (monitor.max_penetration_m, limit_m);
     let speed = monitor.steps as f64 / physics_s.max(1e-9);
     Ok(ArmCase {
-        verdict: Verdict::new(case.name, &case.expected, judgement, penetration, speed, true),
+        verdict: Verdict::new(
+            case.name,
+            &case.expected,
+            judgement,
+            penetration,
+            speed,
+            true,
+        ),
         gains: case.gains_name.into(),
         fault,
         peak_force_n: monitor.peak_force_n,

@@ -448,7 +448,14 @@ fn run_case(
     let force_ok = force_error <= FORCE_AGREEMENT;
     let speed = steps as f64 / step_time;
     FreePegCase {
-        verdict: Verdict::new(case.name, &case.expected, judgement, (max_pen, limit_m), speed, force_ok),
+        verdict: Verdict::new(
+            case.name,
+            &case.expected,
+            judgement,
+            (max_pen, limit_m),
+            speed,
+            force_ok,
+        ),
         force_readout_n: readout.into(),
         force_momentum_n: momentum.into(),
         force_error_pct: force_error * 100.0,

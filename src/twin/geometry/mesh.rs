@@ -3,7 +3,7 @@
 
 use super::PartPair;
 use super::planar::{P2, Region, triangulate};
-use super::solid::{BoundaryMesh, ConvexPiece, P3, Solid};
+use super::solid::{BoundaryMesh, ConvexPiece, P3, Solid, TriangleSoup};
 use crate::error::{Error, Result};
 use parry3d::math::Vector as V3f;
 use parry3d::query::PointQuery;
@@ -129,12 +129,6 @@ impl MeshUnits {
             MeshUnits::M => "metres",
         }
     }
-}
-
-/// A triangle mesh read from a file, metres.
-pub struct TriangleSoup {
-    pub vertices: Vec<P3>,
-    pub triangles: Vec<[u32; 3]>,
 }
 
 /// Reads an STL or OBJ file (by extension) into metres.

@@ -34,6 +34,13 @@ const SAMPLE_SPACING_M: f64 = 0.5e-3;
 /// Most subdivisions of a face triangle for the samples inside it.
 const INTERIOR_SUBDIVISIONS: usize = 8;
 
+/// A triangle mesh as read from a file or made to be written, metres: the input of the exact
+/// stack cut (`stack`) and of a mesh part (`mesh`).
+pub struct TriangleSoup {
+    pub vertices: Vec<P3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
 /// One convex piece in f64: vertices, and faces as outward counter-clockwise polygons, with the
 /// data an exact separating-axis test needs (outward unit face normals, unit edge directions).
 /// Pieces pegtwin builds carry their exact topology; the engine's collider is made from it as is

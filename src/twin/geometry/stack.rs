@@ -11,9 +11,8 @@
 //! Parts with any slanted face (a chamfer, a draft) are not stacks: `None`, and the caller
 //! decides (the loaders keep the hull and report how far it stands off).
 
-use super::mesh::TriangleSoup;
 use super::planar::{P2, Region, difference, signed_area, simplify_ring, union};
-use super::solid::{ConvexPiece, P3, ZPlane, prisms};
+use super::solid::{ConvexPiece, P3, TriangleSoup, ZPlane, prisms};
 use nalgebra::Vector3;
 use std::collections::HashMap;
 
