@@ -7,23 +7,24 @@
 //! z out of the hole), `tcp` = the peg frame (tip centre, z up the peg, so pointing at the flange
 //! when the peg hangs from it).
 
+mod build;
+mod step;
+
 use crate::error::{Error, Result};
 use crate::twin::control::{Controller, ControllerParams, ImpedanceGains, Mode};
-use crate::twin::energy::{EnergyFlows, EnergyLedger, StepEnergy};
+use crate::twin::energy::{EnergyFlows, EnergyLedger};
 use crate::twin::geometry::PartPair;
 use crate::twin::physics::arm::Arm;
-use crate::twin::physics::joint_contacts::{self, ContactSolve};
+use crate::twin::physics::joint_contacts::ContactSolve;
 use crate::twin::physics::penetration::PenetrationProbe;
-use crate::twin::physics::projection;
-use crate::twin::physics::{
-    ArmContacts, PhysicsParams, add_fixed, compound_collider, contact_wrench, fork_world,
-    max_point_speed, set_prediction_for_speed, v64,
-};
+use crate::twin::physics::{PhysicsParams, contact_wrench};
 use crate::twin::robot::spec::RobotSpec;
-use crate::twin::robot::{Dynamics, Inertial, Iso, RobotModel, Tool};
+use crate::twin::robot::{Iso, RobotModel};
 use crate::twin::sensing::{SensorParams, Sensors, Wrench6};
-use nalgebra::{DVector, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
-use rapier3d::prelude::{ColliderBuilder, ColliderHandle, InteractionGroups, PhysicsWorld};
+use build::steps_per_control_cycle;
+pub use build::with_peg;
+use nalgebra::{DVector, Translation3, UnitQuaternion, Vector6};
+use rapier3d::prelude::{ColliderHandle, PhysicsWorld};
 use serde::{Deserialize, Serialize};
 
 /// Solver iterations (substeps) of the arm cell. rapier rebuilds the multibody's mass matrix in
@@ -194,28 +195,6 @@ pub struct Cell {
     friction: f64,
 }
 
-/// Bound on the acceleration (m/s^2) of any point of the tool within `reach_m` of the TCP, free
-/// of contact, under the torques `tau` at the joint speeds `qd` (rad/s) and the viscous damping
-/// of `model`'s joints: `qdd = M^-1 (tau - g - D qd)`, at the TCP `J qdd = [a; alpha]`, and
-/// `|a| + |alpha| reach_m`. The velocity-squared terms are left out (small at the arm's speeds
-/// beside what a change of torque brings). A mass matrix that does not factor (a joint state no
-/// longer finite, which the cell reports as a `sim_fault`) gives 0.
-fn free_acceleration_bound(
-    model: &RobotModel,
-    d: &Dynamics,
-    tau: &DVector<f64>,
-    qd: &[f64],
-    reach_m: f64,
-) -> f64 {
-    let damping = |i: usize| model.joints[i].damping;
-    let rhs = DVector::from_fn(tau.len(), |i, _| tau[i] - d.gravity[i] - damping(i) * qd[i]);
-    let Some(chol) = d.mass.clone().cholesky() else {
-        return 0.0;
-    };
-    let tcp = &d.jacobian * chol.solve(&rhs);
-    tcp.fixed_rows::<3>(0).norm() + tcp.fixed_rows::<3>(3).norm() * reach_m
-}
-
 /// What the robot reports, as of its last control cycle: the only inputs of the method.
 #[derive(Clone, Copy, Debug)]
 pub struct Measurements {
@@ -313,8 +292,6 @@ impl SimFault {
     }
 }
 
-/// Rounds of position projection per step at most.
-const PROJECTION_ROUNDS: usize = 3;
 /// Steps between exact penetration checks.
 const PENETRATION_CHECK_STEPS: u64 = 250;
 /// A joint faster than this multiple of its speed limit is a runaway.
@@ -323,134 +300,6 @@ const RUNAWAY_FACTOR: f64 = 3.0;
 pub const SATURATION_WINDOW_S: f64 = 0.1;
 
 impl Cell {
-    /// An independent copy of the cell that steps on bit for bit as this one would
-    /// ([`fork_world`]): two trials whose first stages are the same simulation run them once and
-    /// branch here.
-    pub fn fork(&self) -> Cell {
-        Cell {
-            world: fork_world(&self.world),
-            arm: self.arm.clone(),
-            model: self.model.clone(),
-            controller: self.controller.clone(),
-            sensors: self.sensors.clone(),
-            base_t_hole: self.base_t_hole,
-            peg: self.peg,
-            peg_reach_m: self.peg_reach_m,
-            steps_per_cycle: self.steps_per_cycle,
-            steps: self.steps,
-            dt_s: self.dt_s,
-            tau: self.tau.clone(),
-            tau_link: self.tau_link.clone(),
-            qd: self.qd.clone(),
-            accel_ahead: self.accel_ahead,
-            disturbance: self.disturbance,
-            tcp_measured: self.tcp_measured,
-            probe: self.probe.clone(),
-            penetration_fault_m: self.penetration_fault_m,
-            saturated_at_s: self.saturated_at_s.clone(),
-            energy: self.energy.clone(),
-            position_projection: self.position_projection,
-            joint_space_contacts: self.joint_space_contacts,
-            peg_contacts: self.peg_contacts.clone(),
-            friction: self.friction,
-        }
-    }
-
-    /// Builds the cell with the arm at rest at `start_tcp` (base frame) under Cartesian impedance
-    /// with `gains`; `base_t_hole: None` leaves the fixture out.
-    pub fn new(
-        pair: &PartPair,
-        robot: RobotModel,
-        params: &CellParams,
-        base_t_hole: Option<Iso>,
-        start_tcp: &Iso,
-        gains: ImpedanceGains,
-        seed: u64,
-    ) -> Result<Cell> {
-        params.ensure_valid()?;
-        let steps_per_cycle = steps_per_control_cycle(params)?;
-        let dt = params.physics.dt_s;
-        let friction = params.physics.friction;
-        let tcp_on_flange = flange_t_tcp(pair);
-        let model = with_peg(robot, pair, params)?;
-        let q0 = model.start_configuration(start_tcp)?;
-
-        let mut world = params.physics.new_world();
-        add_table(&mut world);
-        if let Some(hole) = &base_t_hole {
-            add_fixed(&mut world, &pair.hole, hole, friction);
-        }
-        let joint_space_contacts = params.physics.arm_contacts == ArmContacts::JointSpace;
-        let mut peg_collider = compound_collider(&pair.peg, friction).density(0.0);
-        if joint_space_contacts {
-            // The narrow phase still finds the peg's contacts; rapier's solver leaves them alone.
-            peg_collider = peg_collider.solver_groups(InteractionGroups::none());
-        }
-        let arm = Arm::insert(
-            &mut world,
-            &model,
-            Iso::identity(),
-            &q0,
-            vec![(tcp_on_flange, peg_collider)],
-        );
-        let peg = *world.bodies[arm.last_body()]
-            .colliders()
-            .last()
-            .expect("the peg collider");
-        let (lo, hi) = pair.peg.bounds();
-        let peg_reach_m = (hi - lo).norm() + tcp_on_flange.translation.vector.norm();
-        let controller = Controller::new(
-            params.controller.clone(),
-            &model,
-            Mode::CartesianImpedance {
-                gains,
-                target: *start_tcp,
-            },
-            &q0,
-        )?;
-        let n = model.dof();
-        let model_tcp = model.tcp_pose(&q0);
-        let sensors = Sensors::new(params.sensors.clone(), n, seed)?;
-        let energy = EnergyLedger::new(
-            dt,
-            arm.mechanical_energy(&world, &model.armature, &vec![0.0; n]),
-        );
-        let mut cell = Cell {
-            world,
-            arm,
-            model,
-            controller,
-            sensors,
-            base_t_hole,
-            peg,
-            peg_reach_m,
-            steps_per_cycle,
-            steps: 0,
-            dt_s: dt,
-            tau: DVector::zeros(n),
-            tau_link: DVector::zeros(n),
-            accel_ahead: 0.0,
-            qd: vec![0.0; n],
-            disturbance: None,
-            tcp_measured: model_tcp,
-            probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
-            penetration_fault_m: pair.clearance_m.max(0.1e-3),
-            saturated_at_s: vec![f64::NEG_INFINITY; n],
-            energy,
-            position_projection: params.physics.position_projection,
-            joint_space_contacts,
-            peg_contacts: None,
-            friction,
-        };
-        // Start holding the arm: the task torque is zero at the target, gravity is compensated.
-        let k = cell.model.kinematics(&q0);
-        cell.tau = cell
-            .model
-            .gravity_torques(&k, &Vector3::from(params.controller.gravity));
-        cell.tau_link = cell.tau.clone();
-        Ok(cell)
-    }
-
     /// Physics step, s.
     pub fn dt_s(&self) -> f64 {
         self.dt_s
@@ -459,178 +308,6 @@ impl Cell {
     /// Simulated time, s.
     pub fn time_s(&self) -> f64 {
         self.steps as f64 * self.dt_s
-    }
-
-    /// Advances one physics step (running a control cycle first when one is due).
-    pub fn step(&mut self) {
-        if self.steps.is_multiple_of(self.steps_per_cycle as u64) {
-            self.control_cycle();
-        }
-        let dt = self.dt_s;
-        self.arm.apply_torques(&mut self.world, self.tau.as_slice());
-        if let Some(w) = self.disturbance {
-            self.apply_disturbance(&w);
-        }
-        let speed = max_point_speed(&self.world, self.arm.last_body(), self.peg_reach_m);
-        let ahead = speed + self.accel_ahead * dt;
-        set_prediction_for_speed(&mut self.world, ahead, ARM_MIN_PREDICTION_M);
-        let q_before = self.arm.q(&self.world);
-        self.world.step();
-        self.arm.clear_torques(&mut self.world);
-        if self.joint_space_contacts {
-            self.solve_peg_contacts(&q_before);
-        }
-        // Torques do not change velocities until the step, so the last step's velocities are
-        // the ones before this one.
-        let qd = self.arm.qd(&self.world);
-        for (i, (v, v_before)) in qd.iter().zip(&self.qd).enumerate() {
-            let qdd = (v - v_before) / dt;
-            self.tau_link[i] =
-                self.tau[i] - self.model.armature[i] * qdd - self.model.joints[i].damping * v;
-        }
-        self.steps += 1;
-        let booked = self.step_energy(&q_before, &qd, dt);
-        self.energy.book(self.time_s(), booked);
-        self.qd = qd;
-        if self.position_projection {
-            self.project_out_penetration();
-        }
-    }
-
-    /// Solves the peg's contacts found at the start of the step (at `q_before`) against the
-    /// velocity rapier's step left, and applies the result as semi-implicit Euler does: the
-    /// velocity change, and the joints moved by the step times it ([`joint_contacts`]).
-    fn solve_peg_contacts(&mut self, q_before: &[f64]) {
-        self.peg_contacts = None;
-        let contacts = joint_contacts::peg_contacts(&self.world, self.peg);
-        if contacts.is_empty() {
-            return;
-        }
-        let k = self.model.kinematics(q_before);
-        let mass = self.model.mass_matrix(&k);
-        let v_free = DVector::from_vec(self.arm.qd(&self.world));
-        let about = Point3::from(self.model.tcp_from(&k).translation.vector);
-        let Some(solve) = joint_contacts::solve(
-            &self.model,
-            &k,
-            &self.arm.world_t_base,
-            &mass,
-            &v_free,
-            &contacts,
-            self.friction,
-            self.dt_s,
-            &about,
-        ) else {
-            return;
-        };
-        // Semi-implicit Euler, as the solve assumed: q = q_before + dt v_new. rapier's two
-        // substeps put the free motion's end elsewhere by a dt^2 / 4 (measured: half a
-        // micrometre at a wedged peg, which then never left the wall).
-        let v_new = &v_free + &solve.dv;
-        let q_now = self.arm.q(&self.world);
-        let dq: Vec<f64> = (q_before.iter().zip(&q_now).zip(v_new.iter()))
-            .map(|((q0, q), v)| q0 + self.dt_s * v - q)
-            .collect();
-        self.arm.displace(&mut self.world, &dq);
-        self.arm.set_qd(&mut self.world, v_new.as_slice());
-        self.peg_contacts = Some(solve);
-    }
-
-    /// Moves the arm out of what its peg still overlaps after the step
-    /// ([`crate::twin::physics::projection`]), measured on the exact pieces; a few rounds, as
-    /// a projection is a linearisation.
-    fn project_out_penetration(&mut self) {
-        let Some((probe, peg)) = &self.probe else {
-            return;
-        };
-        let mut depth = -crate::twin::physics::min_solver_gap(&self.world, self.peg);
-        if depth < projection::SOLVER_TRIGGER_M {
-            return;
-        }
-        for _ in 0..PROJECTION_ROUNDS {
-            let q = self.arm.q(&self.world);
-            let tcp = self.model.tcp_pose(&q);
-            let rows = probe.gap_rows(peg, &tcp, projection::reach_m(depth));
-            let Some(dq) = projection::projection(
-                &self.model,
-                &q,
-                &self.arm.world_t_base,
-                &rows,
-                self.peg_reach_m,
-            ) else {
-                return;
-            };
-            depth = -rows.iter().map(|r| r.gap_m).fold(0.0, f64::min);
-            self.arm.displace(&mut self.world, dq.as_slice());
-        }
-    }
-
-    /// The arm's energy after the step and the work done on it during the step, from the joint
-    /// positions before it and the joint speeds `qd` after it (see [`crate::twin::energy`]). A
-    /// joint torque is constant over the step, so its work is exact: torque times the joint's
-    /// travel; the damping's is booked as rapier applies it, implicitly (at the speed after the
-    /// step), and the contacts' at the velocities after the step.
-    fn step_energy(&self, q_before: &[f64], qd: &[f64], dt: f64) -> StepEnergy {
-        let q_after = self.arm.q(&self.world);
-        let travel = q_after.iter().zip(q_before).map(|(q, q0)| q - q0);
-        let (torque_work, damping_work) = (travel.zip(&self.tau).zip(qd))
-            .zip(&self.model.joints)
-            .fold((0.0, 0.0), |(t, d), (((dq, tau), v), j)| {
-                (t + tau * dq, d - j.damping * v * dq)
-            });
-        StepEnergy {
-            mechanical_j: self
-                .arm
-                .mechanical_energy(&self.world, &self.model.armature, qd),
-            drives_j: torque_work + self.disturbance_power() * dt,
-            contacts_j: self.arm.contact_power(&self.world) * dt
-                + self.peg_contacts.as_ref().map_or(0.0, |c| c.work_j),
-            damping_j: damping_work,
-        }
-    }
-
-    /// Power of the diagnostic push on the TCP, W (zero without one).
-    fn disturbance_power(&self) -> f64 {
-        let Some(w) = &self.disturbance else {
-            return 0.0;
-        };
-        let body = &self.world.bodies[self.arm.last_body()];
-        let tcp = self.true_tcp_pose();
-        let (v, omega) = (v64(body.linvel()), v64(body.angvel()));
-        let v_tcp = v + omega.cross(&(tcp.translation.vector - v64(body.center_of_mass())));
-        w.fixed_rows::<3>(0).dot(&v_tcp) + w.fixed_rows::<3>(3).dot(&omega)
-    }
-
-    /// Runs `seconds` of simulated time.
-    pub fn run(&mut self, seconds: f64) {
-        let n = (seconds / self.dt_s).round() as usize;
-        for _ in 0..n {
-            self.step();
-        }
-    }
-
-    fn control_cycle(&mut self) {
-        let period = 1.0 / self.controller.params.rate_hz;
-        let q = self.arm.q(&self.world);
-        let q_meas = self.sensors.read_q(&q);
-        let tau_meas = self.sensors.read_torques(&self.tau_link, period);
-        let gravity = Vector3::from(self.controller.params.gravity);
-        let d = self.model.dynamics(&q_meas, &gravity);
-        self.tcp_measured = d.tcp;
-        self.sensors.estimate(&d, &self.qd, &tau_meas, period);
-        self.tau = self.controller.update(&d, &q_meas, &self.qd);
-        self.accel_ahead =
-            free_acceleration_bound(&self.model, &d, &self.tau, &self.qd, self.peg_reach_m);
-        let now = self.time_s();
-        for (at, &sat) in self
-            .saturated_at_s
-            .iter_mut()
-            .zip(self.controller.saturated())
-        {
-            if sat {
-                *at = now;
-            }
-        }
     }
 
     /// The joints whose commanded torque was clamped to its limit within the last
@@ -644,21 +321,6 @@ impl Cell {
             .filter(|(_, at)| now - **at <= SATURATION_WINDOW_S)
             .map(|(j, _)| j.name.clone())
             .collect()
-    }
-
-    fn apply_disturbance(&mut self, w: &Wrench6) {
-        let tcp = self.true_tcp_pose();
-        let body = &mut self.world.bodies[self.arm.last_body()];
-        let at = crate::twin::physics::v32(&tcp.translation.vector);
-        body.add_force_at_point(
-            crate::twin::physics::v32(&w.fixed_rows::<3>(0).into_owned()),
-            at,
-            true,
-        );
-        body.add_torque(
-            crate::twin::physics::v32(&w.fixed_rows::<3>(3).into_owned()),
-            true,
-        );
     }
 
     /// Joint torques being applied, N m.
@@ -769,53 +431,14 @@ impl Cell {
     }
 }
 
-/// Physics steps per control cycle: the control period must be a whole number of steps.
-fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
-    let dt = params.physics.dt_s;
-    let period = 1.0 / params.controller.rate_hz;
-    let steps = (period / dt).round() as usize;
-    if steps == 0 || ((steps as f64) * dt - period).abs() > 1e-9 {
-        return Err(Error::Input(format!(
-            "physics.dt_s = {dt}: the control period {period} s must be a whole number of physics steps"
-        )));
-    }
-    Ok(steps)
-}
-
-/// The robot model carrying the peg as its tool: the peg's mass properties (its convex pieces at
-/// the pair's peg mass, else the peg mass of `params`) on the flange at `flange_t_tcp`.
-/// The robot with the peg of `pair` on its flange as its tool (mass from the pair or `params`).
-pub fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Result<RobotModel> {
-    let tcp_on_flange = flange_t_tcp(pair);
-    let peg_props = compound_collider(&pair.peg, params.physics.friction)
-        .mass(pair.peg_mass_kg.unwrap_or(params.peg_mass_kg) as f32)
-        .build()
-        .mass_properties();
-    let tool_inertial = Inertial {
-        mass_kg: peg_props.mass() as f64,
-        com: Point3::from(v64(peg_props.local_com)),
-        inertia: nalgebra::Matrix3::from(peg_props.reconstruct_inertia_matrix()).cast::<f64>(),
-    }
-    .transformed(&tcp_on_flange);
-    Ok(robot.with_tool(Tool {
-        inertial: tool_inertial,
-        flange_t_tcp: tcp_on_flange,
-    }))
-}
-
-/// The table: a fixed slab with its top at z = 0 (the base stands on it).
-fn add_table(world: &mut PhysicsWorld) {
-    let table = ColliderBuilder::cuboid(0.8, 0.8, 0.025)
-        .translation(crate::twin::physics::v32(&Vector3::new(0.4, 0.0, -0.025)));
-    world.insert_collider(table, None);
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::pose::Pose6;
     use crate::twin::geometry::{build_builtin, builtin_by_name};
+    use crate::twin::physics::max_point_speed;
     use crate::twin::robot::urdf::iiwa14;
+    use nalgebra::Vector3;
 
     /// The stiffest, least damped corner of the Sunrise box (5 000 N/m, 300 N m/rad, damping
     /// 0.1) thrown 5 mm and 3 deg off its target: the peg's fastest point never gets farther in a

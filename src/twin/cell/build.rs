@@ -1,0 +1,201 @@
+//! Building the cell ([`Cell::new`]) and forking it ([`Cell::fork`]).
+
+use super::{Cell, CellParams, flange_t_tcp};
+use crate::error::{Error, Result};
+use crate::twin::control::{Controller, ImpedanceGains, Mode};
+use crate::twin::energy::EnergyLedger;
+use crate::twin::geometry::PartPair;
+use crate::twin::physics::arm::Arm;
+use crate::twin::physics::penetration::PenetrationProbe;
+use crate::twin::physics::{ArmContacts, add_fixed, compound_collider, fork_world, v64};
+use crate::twin::robot::{Inertial, Iso, RobotModel, Tool};
+use crate::twin::sensing::Sensors;
+use nalgebra::{DVector, Point3, Vector3};
+use rapier3d::prelude::{ColliderBuilder, ColliderHandle, InteractionGroups, PhysicsWorld};
+
+impl Cell {
+    /// An independent copy of the cell that steps on bit for bit as this one would
+    /// ([`fork_world`]): two trials whose first stages are the same simulation run them once and
+    /// branch here.
+    pub fn fork(&self) -> Cell {
+        Cell {
+            world: fork_world(&self.world),
+            arm: self.arm.clone(),
+            model: self.model.clone(),
+            controller: self.controller.clone(),
+            sensors: self.sensors.clone(),
+            base_t_hole: self.base_t_hole,
+            peg: self.peg,
+            peg_reach_m: self.peg_reach_m,
+            steps_per_cycle: self.steps_per_cycle,
+            steps: self.steps,
+            dt_s: self.dt_s,
+            tau: self.tau.clone(),
+            tau_link: self.tau_link.clone(),
+            qd: self.qd.clone(),
+            accel_ahead: self.accel_ahead,
+            disturbance: self.disturbance,
+            tcp_measured: self.tcp_measured,
+            probe: self.probe.clone(),
+            penetration_fault_m: self.penetration_fault_m,
+            saturated_at_s: self.saturated_at_s.clone(),
+            energy: self.energy.clone(),
+            position_projection: self.position_projection,
+            joint_space_contacts: self.joint_space_contacts,
+            peg_contacts: self.peg_contacts.clone(),
+            friction: self.friction,
+        }
+    }
+
+    /// Builds the cell with the arm at rest at `start_tcp` (base frame) under Cartesian impedance
+    /// with `gains`; `base_t_hole: None` leaves the fixture out.
+    pub fn new(
+        pair: &PartPair,
+        robot: RobotModel,
+        params: &CellParams,
+        base_t_hole: Option<Iso>,
+        start_tcp: &Iso,
+        gains: ImpedanceGains,
+        seed: u64,
+    ) -> Result<Cell> {
+        params.ensure_valid()?;
+        let steps_per_cycle = steps_per_control_cycle(params)?;
+        let dt = params.physics.dt_s;
+        let friction = params.physics.friction;
+        let tcp_on_flange = flange_t_tcp(pair);
+        let model = with_peg(robot, pair, params)?;
+        let q0 = model.start_configuration(start_tcp)?;
+
+        let joint_space_contacts = params.physics.arm_contacts == ArmContacts::JointSpace;
+        let (world, arm, peg) = build_world(pair, &model, params, base_t_hole.as_ref(), &q0);
+        let (lo, hi) = pair.peg.bounds();
+        let peg_reach_m = (hi - lo).norm() + tcp_on_flange.translation.vector.norm();
+        let controller = Controller::new(
+            params.controller.clone(),
+            &model,
+            Mode::CartesianImpedance {
+                gains,
+                target: *start_tcp,
+            },
+            &q0,
+        )?;
+        let n = model.dof();
+        let model_tcp = model.tcp_pose(&q0);
+        let sensors = Sensors::new(params.sensors.clone(), n, seed)?;
+        let energy = EnergyLedger::new(
+            dt,
+            arm.mechanical_energy(&world, &model.armature, &vec![0.0; n]),
+        );
+        let mut cell = Cell {
+            world,
+            arm,
+            model,
+            controller,
+            sensors,
+            base_t_hole,
+            peg,
+            peg_reach_m,
+            steps_per_cycle,
+            steps: 0,
+            dt_s: dt,
+            tau: DVector::zeros(n),
+            tau_link: DVector::zeros(n),
+            accel_ahead: 0.0,
+            qd: vec![0.0; n],
+            disturbance: None,
+            tcp_measured: model_tcp,
+            probe: base_t_hole.map(|h| (PenetrationProbe::new(&pair.hole, &h), pair.peg.clone())),
+            penetration_fault_m: pair.clearance_m.max(0.1e-3),
+            saturated_at_s: vec![f64::NEG_INFINITY; n],
+            energy,
+            position_projection: params.physics.position_projection,
+            joint_space_contacts,
+            peg_contacts: None,
+            friction,
+        };
+        // Start holding the arm: the task torque is zero at the target, gravity is compensated.
+        let k = cell.model.kinematics(&q0);
+        cell.tau = cell
+            .model
+            .gravity_torques(&k, &Vector3::from(params.controller.gravity));
+        cell.tau_link = cell.tau.clone();
+        Ok(cell)
+    }
+}
+
+/// The cell's rapier world: the table, the hole's fixture at `base_t_hole` (none: free space),
+/// and the arm at `q0` carrying the peg on its flange; with the arm and the peg's collider. In
+/// joint-space contacts the narrow phase still finds the peg's contacts and rapier's solver
+/// leaves them alone.
+fn build_world(
+    pair: &PartPair,
+    model: &RobotModel,
+    params: &CellParams,
+    base_t_hole: Option<&Iso>,
+    q0: &[f64],
+) -> (PhysicsWorld, Arm, ColliderHandle) {
+    let friction = params.physics.friction;
+    let mut world = params.physics.new_world();
+    add_table(&mut world);
+    if let Some(hole) = base_t_hole {
+        add_fixed(&mut world, &pair.hole, hole, friction);
+    }
+    let mut peg_collider = compound_collider(&pair.peg, friction).density(0.0);
+    if params.physics.arm_contacts == ArmContacts::JointSpace {
+        peg_collider = peg_collider.solver_groups(InteractionGroups::none());
+    }
+    let tcp_on_flange = flange_t_tcp(pair);
+    let arm = Arm::insert(
+        &mut world,
+        model,
+        Iso::identity(),
+        q0,
+        vec![(tcp_on_flange, peg_collider)],
+    );
+    let peg = *world.bodies[arm.last_body()]
+        .colliders()
+        .last()
+        .expect("the peg collider");
+    (world, arm, peg)
+}
+
+/// Physics steps per control cycle: the control period must be a whole number of steps.
+pub(super) fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
+    let dt = params.physics.dt_s;
+    let period = 1.0 / params.controller.rate_hz;
+    let steps = (period / dt).round() as usize;
+    if steps == 0 || ((steps as f64) * dt - period).abs() > 1e-9 {
+        return Err(Error::Input(format!(
+            "physics.dt_s = {dt}: the control period {period} s must be a whole number of physics steps"
+        )));
+    }
+    Ok(steps)
+}
+
+/// The robot model carrying the peg as its tool: the peg's mass properties (its convex pieces at
+/// the pair's peg mass, else the peg mass of `params`) on the flange at `flange_t_tcp`.
+/// The robot with the peg of `pair` on its flange as its tool (mass from the pair or `params`).
+pub fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Result<RobotModel> {
+    let tcp_on_flange = flange_t_tcp(pair);
+    let peg_props = compound_collider(&pair.peg, params.physics.friction)
+        .mass(pair.peg_mass_kg.unwrap_or(params.peg_mass_kg) as f32)
+        .build()
+        .mass_properties();
+    let tool_inertial = Inertial {
+        mass_kg: peg_props.mass() as f64,
+        com: Point3::from(v64(peg_props.local_com)),
+        inertia: nalgebra::Matrix3::from(peg_props.reconstruct_inertia_matrix()).cast::<f64>(),
+    }
+    .transformed(&tcp_on_flange);
+    Ok(robot.with_tool(Tool {
+        inertial: tool_inertial,
+        flange_t_tcp: tcp_on_flange,
+    }))
+}
+
+/// The table: a fixed slab with its top at z = 0 (the base stands on it).
+pub(super) fn add_table(world: &mut PhysicsWorld) {
+    let table = ColliderBuilder::cuboid(0.8, 0.8, 0.025)
+        .translation(crate::twin::physics::v32(&Vector3::new(0.4, 0.0, -0.025)));
+    world.insert_collider(table, None);
+}
