@@ -8,6 +8,12 @@
 //! `offset_deg`); gains and sensor parameters are SI as in the code (stiffness N/m on x, y, z and
 //! N m/rad on roll, pitch, yaw, in the TCP frame). The fields are listed in docs/scenarios.md.
 
+mod overrides;
+
+pub use overrides::{
+    DirectOverride, GainsOverride, InsertionOverride, PairPhysics, PhaseGains, PhysicsOverride,
+};
+
 use crate::error::{Error, Result};
 use crate::method::config::{
     MAX_SUCCESS_EPS_M, MAX_T_OBS_S, MIN_T_OBS_S, Method, Start, TrialConfig,
@@ -17,7 +23,6 @@ use crate::method::manifold::cache::ManifoldSpec;
 use crate::method::register::RegistrationConfig;
 use crate::twin::assembly;
 use crate::twin::cell::CellParams;
-use crate::twin::control::ImpedanceGains;
 use crate::twin::geometry::{self, PartPair};
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::sensing::SensorParams;
@@ -110,193 +115,6 @@ fn default_offset() -> f64 {
 }
 fn default_success() -> f64 {
     2.0
-}
-
-/// Gain overrides of the three online phases.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PhaseGains {
-    #[serde(default)]
-    pub observe: GainsOverride,
-    #[serde(default)]
-    pub align: GainsOverride,
-    #[serde(default)]
-    pub insert: GainsOverride,
-}
-
-/// Fields of `ImpedanceGains` to replace; the rest keep the phase's default.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GainsOverride {
-    /// N/m on x, y, z; N m/rad on roll, pitch, yaw (TCP frame).
-    pub stiffness: Option<[f64; 6]>,
-    pub damping_ratio: Option<[f64; 6]>,
-    /// N m/rad.
-    pub null_stiffness: Option<f64>,
-    pub null_damping_ratio: Option<f64>,
-    /// N and N m per axis.
-    pub max_control_force: Option<[f64; 6]>,
-    /// Feed-forward wrench at the TCP, N and N m.
-    pub additional_force: Option<[f64; 6]>,
-}
-
-impl GainsOverride {
-    /// `base` with these fields replaced.
-    pub fn apply(&self, base: &ImpedanceGains) -> ImpedanceGains {
-        let mut g = base.clone();
-        if let Some(v) = self.stiffness {
-            g.stiffness = v;
-        }
-        if let Some(v) = self.damping_ratio {
-            g.damping_ratio = v;
-        }
-        if let Some(v) = self.null_stiffness {
-            g.null_stiffness = v;
-        }
-        if let Some(v) = self.null_damping_ratio {
-            g.null_damping_ratio = v;
-        }
-        if let Some(v) = self.max_control_force {
-            g.max_control_force = Some(v);
-        }
-        if let Some(v) = self.additional_force {
-            g.additional_force = v;
-        }
-        g
-    }
-}
-
-/// Settings of the insertion (paper IV-E) to replace; units in the names.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct InsertionOverride {
-    /// Speed of the insertion target, mm/s.
-    pub speed_mm_per_s: Option<f64>,
-    /// How far past the believed floor the target goes, mm.
-    pub overshoot_mm: Option<f64>,
-    /// The jam break condition: |Fz| above this anywhere stops the target, N.
-    pub jam_force_n: Option<f64>,
-    /// The seat break condition: near the floor, a stalled tip pressing harder than this, N.
-    pub seat_force_n: Option<f64>,
-    /// How far above the believed floor the seat condition arms, mm.
-    pub seat_window_mm: Option<f64>,
-    /// Time limit of the insertion, s.
-    pub limit_s: Option<f64>,
-}
-
-impl InsertionOverride {
-    fn is_default(&self) -> bool {
-        *self == Self::default()
-    }
-
-    /// `config` with these fields replaced.
-    fn apply(&self, config: &mut TrialConfig) {
-        let mm = |v: Option<f64>| v.map(|v| v * 1e-3);
-        let c = config;
-        c.insert_speed_m_per_s = mm(self.speed_mm_per_s).unwrap_or(c.insert_speed_m_per_s);
-        c.insert_overshoot_m = mm(self.overshoot_mm).unwrap_or(c.insert_overshoot_m);
-        c.insert_stop_force_n = self.jam_force_n.unwrap_or(c.insert_stop_force_n);
-        c.insert_seat_force_n = self.seat_force_n.unwrap_or(c.insert_seat_force_n);
-        c.insert_seat_window_m = mm(self.seat_window_mm).unwrap_or(c.insert_seat_window_m);
-        c.insert_limit_s = self.limit_s.unwrap_or(c.insert_limit_s);
-    }
-
-    /// Range checks, naming the field under `section`.
-    fn ensure_valid(&self, section: &str) -> Result<()> {
-        // (field, value, lowest, highest, whether the lowest itself is refused)
-        let checks = [
-            ("speed_mm_per_s", self.speed_mm_per_s, 0.0, 100.0, true),
-            ("overshoot_mm", self.overshoot_mm, 0.0, 50.0, false),
-            ("jam_force_n", self.jam_force_n, 0.0, 500.0, true),
-            ("seat_force_n", self.seat_force_n, 0.0, 500.0, true),
-            ("seat_window_mm", self.seat_window_mm, 0.0, 50.0, false),
-            ("limit_s", self.limit_s, 0.0, 600.0, true),
-        ];
-        for (field, v, lo, hi, lo_open) in checks {
-            let Some(v) = v else { continue };
-            let above = if lo_open { v > lo } else { v >= lo };
-            if !(above && v <= hi) {
-                let bracket = if lo_open { "(" } else { "[" };
-                return Err(Error::Input(format!(
-                    "{section}.{field} = {v:?}: expected a value in {bracket}{lo}, {hi}]"
-                )));
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The direct baseline's own settings, applied to its cells over the scenario's.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DirectOverride {
-    #[serde(default)]
-    pub gains: PhaseGains,
-    #[serde(default)]
-    pub insertion: InsertionOverride,
-}
-
-impl DirectOverride {
-    fn is_default(&self) -> bool {
-        *self == Self::default()
-    }
-}
-
-/// Physics parameters to replace.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PhysicsOverride {
-    /// Physics step, s.
-    pub dt_s: Option<f64>,
-    /// Solver iterations (substeps) per step.
-    pub solver_iterations: Option<usize>,
-    /// Gauss-Seidel passes over the constraints per substep.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub pgs_iterations: Option<usize>,
-    /// Contact constraint natural frequency, Hz.
-    pub contact_frequency_hz: Option<f64>,
-    /// Coulomb friction between peg and hole.
-    pub friction: Option<f64>,
-    /// Position projection of the arm's peg after every step.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub position_projection: Option<bool>,
-    /// Who solves the arm's peg contacts: `"joint_space"` (default) or `"rapier"`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub arm_contacts: Option<crate::twin::physics::ArmContacts>,
-}
-
-/// `[[pair_physics]]`: physics parameters for one geometry (or assembly), at one clearance or
-/// at all of them, applied over the scenario's `[physics]`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PairPhysics {
-    /// A built-in geometry of `geometries` or an assembly's name.
-    pub geometry: String,
-    /// One of `clearances_mm`; every clearance when absent.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub clearance_mm: Option<f64>,
-    /// The parameters to replace, e.g. `{ pgs_iterations = 8 }`.
-    pub physics: PhysicsOverride,
-}
-
-impl PairPhysics {
-    fn matches(&self, cell: &Condition) -> bool {
-        self.geometry == cell.geometry && self.clearance_mm.is_none_or(|c| c == cell.clearance_mm)
-    }
-}
-
-impl PhysicsOverride {
-    /// `params` with the fields given here replaced.
-    fn apply(&self, params: &mut CellParams) {
-        let ph = &mut params.physics;
-        ph.dt_s = self.dt_s.unwrap_or(ph.dt_s);
-        ph.solver_iterations = self.solver_iterations.unwrap_or(ph.solver_iterations);
-        ph.pgs_iterations = self.pgs_iterations.unwrap_or(ph.pgs_iterations);
-        ph.contact_frequency_hz = self.contact_frequency_hz.unwrap_or(ph.contact_frequency_hz);
-        ph.friction = self.friction.unwrap_or(ph.friction);
-        ph.position_projection = self.position_projection.unwrap_or(ph.position_projection);
-        ph.arm_contacts = self.arm_contacts.unwrap_or(ph.arm_contacts);
-    }
 }
 
 /// One condition of the experiment, a cell of its table (named `Condition` so as not to be
