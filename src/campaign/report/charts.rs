@@ -1,42 +1,32 @@
-//! The report's figures (plotters, PNG and SVG) and `report.html`:
-//! - `fig4_success`: success rate per geometry, the manifold method at each t_obs beside the
-//!   direct baseline, with 95 % Wilson intervals (paper Fig. 4);
-//! - `fig5_errors`: success rate against the estimate's position error (max |x|, |y|) and
-//!   orientation error (max |roll|, |pitch|, |yaw|), with the number of trials per bin; bins past
-//!   2.5 deg are drawn red as in the paper (Fig. 5);
-//! - `fig6_fz`: |Fz| during insertion, mean +- 1 std, for successes and failures of each method
-//!   (Fig. 6);
-//! - with several clearances, `fig5_errors-{c}mm` and `fig6_fz-{c}mm` for each clearance beside
-//!   the pooled ones (the paper pools its 0.1-1.0 mm parts).
+//! The report's figures, drawn with plotters: success per geometry (Fig. 4), success against the
+//! estimate's errors (Fig. 5), |Fz| during insertion (Fig. 6), and the tuner's evaluations.
 
-use super::summary::{
-    AXES, MeanStd, Moments, Pass, Summary, SummaryTally, abs_errors, two_passes, wilson_interval,
-};
-use crate::campaign::records::{RecordSource, TrialRecord};
-use crate::campaign::replays::{self, ReplayLink};
+use crate::campaign::records::TrialRecord;
+
 use crate::campaign::scenario::Scenario;
+use crate::campaign::summary::{Moments, Pass, Summary, abs_errors, wilson_interval};
 use crate::campaign::tune::Evaluation;
 use crate::error::Result;
 use crate::figures::{self, DrawResult, err};
 use crate::method::config::Method;
-use crate::method::manifold::{cache, plot};
+
 use crate::method::trial::FZ_PROFILE_DT_S;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
-const SIZE: (u32, u32) = (960, 540);
+pub(super) const SIZE: (u32, u32) = (960, 540);
 
 /// Position error bins, mm (upper edges; the last is open).
-const POSITION_BINS_MM: [f64; 6] = [0.1, 0.2, 0.3, 0.5, 1.0, f64::INFINITY];
+pub(super) const POSITION_BINS_MM: [f64; 6] = [0.1, 0.2, 0.3, 0.5, 1.0, f64::INFINITY];
 /// Orientation error bins, deg.
-const ORIENTATION_BINS_DEG: [f64; 7] = [0.5, 1.0, 1.5, 2.0, 2.5, 5.0, f64::INFINITY];
+pub(super) const ORIENTATION_BINS_DEG: [f64; 7] = [0.5, 1.0, 1.5, 2.0, 2.5, 5.0, f64::INFINITY];
 /// The paper's critical orientation error, deg.
-const CRITICAL_DEG: f64 = 2.5;
+pub(super) const CRITICAL_DEG: f64 = 2.5;
 
 /// Renders one figure of the report to `dir/figures/{name}.png` and `.svg`.
-fn render(
+pub(super) fn render(
     dir: &Path,
     name: &str,
     draw_png: impl Fn(DrawingArea<BitMapBackend, Shift>) -> DrawResult,
@@ -45,10 +35,10 @@ fn render(
     figures::render(&dir.join("figures"), name, SIZE, draw_png, draw_svg)
 }
 
-type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+pub(super) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// A chart with one category per integer x (labelled by `labels`) and a percentage y axis.
-fn category_chart<'a, DB: DrawingBackend>(
+pub(super) fn category_chart<'a, DB: DrawingBackend>(
     area: &'a DrawingArea<DB, Shift>,
     title: &str,
     title_size: u32,
@@ -87,7 +77,7 @@ fn category_chart<'a, DB: DrawingBackend>(
 }
 
 /// The series legend, boxed, at `position`.
-fn draw_legend<'a, DB: DrawingBackend + 'a>(
+pub(super) fn draw_legend<'a, DB: DrawingBackend + 'a>(
     chart: &mut Chart<'a, DB>,
     position: SeriesLabelPosition,
 ) -> DrawResult {
@@ -102,12 +92,12 @@ fn draw_legend<'a, DB: DrawingBackend + 'a>(
 }
 
 /// A bar series of fig. 4: a label and, per geometry, (rate, ci low, ci high).
-struct BarSeries {
+pub(super) struct BarSeries {
     label: String,
     values: Vec<Option<[f64; 3]>>,
 }
 
-fn success_series(summary: &Summary, geometries: &[String]) -> Vec<BarSeries> {
+pub(super) fn success_series(summary: &Summary, geometries: &[String]) -> Vec<BarSeries> {
     let mut groups: Vec<(Method, f64)> = Vec::new();
     for c in &summary.cells {
         let g = (c.cell.method, c.cell.t_obs_s);
@@ -146,7 +136,7 @@ fn success_series(summary: &Summary, geometries: &[String]) -> Vec<BarSeries> {
         .collect()
 }
 
-fn draw_success<DB: DrawingBackend>(
+pub(super) fn draw_success<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     geometries: &[String],
     series: &[BarSeries],
@@ -193,20 +183,20 @@ fn draw_success<DB: DrawingBackend>(
 
 /// Trials and successes per bin of an error (the largest of some absolute errors).
 #[derive(Clone, Debug)]
-struct Bins {
+pub(super) struct Bins {
     edges: &'static [f64],
     counts: Vec<(usize, usize)>,
 }
 
 impl Bins {
-    fn new(edges: &'static [f64]) -> Self {
+    pub(super) fn new(edges: &'static [f64]) -> Self {
         Bins {
             edges,
             counts: vec![(0, 0); edges.len()],
         }
     }
 
-    fn add(&mut self, value: f64, success: bool) {
+    pub(super) fn add(&mut self, value: f64, success: bool) {
         let b = self
             .edges
             .iter()
@@ -219,13 +209,13 @@ impl Bins {
 
 /// |Fz| during insertion of one group of trials: mean and std per profile sample.
 #[derive(Clone, Debug, Default)]
-struct ProfileTally {
+pub(super) struct ProfileTally {
     trials: usize,
     samples: Vec<Moments>,
 }
 
 impl ProfileTally {
-    fn add(&mut self, profile_n: &[f64], pass: Pass) {
+    pub(super) fn add(&mut self, profile_n: &[f64], pass: Pass) {
         if pass == Pass::Mean {
             self.trials += 1;
         }
@@ -238,7 +228,7 @@ impl ProfileTally {
     }
 
     /// (time s, mean N, std N) per profile sample that at least one trial reached.
-    fn band(&self) -> Vec<(f64, f64, f64)> {
+    pub(super) fn band(&self) -> Vec<(f64, f64, f64)> {
         self.samples
             .iter()
             .enumerate()
@@ -251,7 +241,7 @@ impl ProfileTally {
 }
 
 /// The groups of the |Fz| figure: method, success, label, colour.
-const FZ_GROUPS: [(Method, bool, &str, RGBColor); 4] = [
+pub(super) const FZ_GROUPS: [(Method, bool, &str, RGBColor); 4] = [
     (Method::Manifold, true, "manifold, success", GREEN),
     (Method::Manifold, false, "manifold, failure", BLUE),
     (Method::Direct, true, "direct, success", MAGENTA),
@@ -261,16 +251,16 @@ const FZ_GROUPS: [(Method, bool, &str, RGBColor); 4] = [
 /// What the figures of one group of trials need from the records, gathered over
 /// [`two_passes`] (no record is kept).
 #[derive(Clone, Debug)]
-struct FigureTally {
+pub(super) struct FigureTally {
     /// Which trials: every one (none), or those at one clearance, mm.
-    clearance_mm: Option<f64>,
+    pub(super) clearance_mm: Option<f64>,
     position: Bins,
     orientation: Bins,
     fz: [ProfileTally; 4],
 }
 
 impl FigureTally {
-    fn new(clearance_mm: Option<f64>) -> Self {
+    pub(super) fn new(clearance_mm: Option<f64>) -> Self {
         FigureTally {
             clearance_mm,
             position: Bins::new(&POSITION_BINS_MM),
@@ -280,7 +270,7 @@ impl FigureTally {
     }
 
     /// The figures' file name suffix and title suffix: none pooled, else the clearance.
-    fn suffixes(&self) -> (String, String) {
+    pub(super) fn suffixes(&self) -> (String, String) {
         self.clearance_mm
             .map_or((String::new(), String::new()), |c| {
                 (format!("-{c}mm"), format!(" at {c} mm"))
@@ -288,7 +278,7 @@ impl FigureTally {
     }
 
     /// The pooled figures, then one set per clearance when the scenario has several.
-    fn per_clearance(scenario: &Scenario) -> Vec<FigureTally> {
+    pub(super) fn per_clearance(scenario: &Scenario) -> Vec<FigureTally> {
         let mut clearances: Vec<f64> = Vec::new();
         for c in scenario.cells() {
             if !clearances.contains(&c.clearance_mm) {
@@ -304,7 +294,7 @@ impl FigureTally {
             .collect()
     }
 
-    fn add(&mut self, r: &TrialRecord, pass: Pass) {
+    pub(super) fn add(&mut self, r: &TrialRecord, pass: Pass) {
         let res = &r.result;
         if self.clearance_mm.is_some_and(|c| c != res.clearance_mm) {
             return;
@@ -324,7 +314,7 @@ impl FigureTally {
     }
 }
 
-fn bin_labels(edges: &[f64]) -> Vec<String> {
+pub(super) fn bin_labels(edges: &[f64]) -> Vec<String> {
     let mut lo = 0.0;
     edges
         .iter()
@@ -340,7 +330,7 @@ fn bin_labels(edges: &[f64]) -> Vec<String> {
         .collect()
 }
 
-fn draw_binned<DB: DrawingBackend>(
+pub(super) fn draw_binned<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     title: &str,
     axis: &str,
@@ -387,7 +377,7 @@ fn draw_binned<DB: DrawingBackend>(
     Ok(())
 }
 
-fn draw_errors<DB: DrawingBackend>(
+pub(super) fn draw_errors<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     tally: &FigureTally,
 ) -> DrawResult {
@@ -412,9 +402,12 @@ fn draw_errors<DB: DrawingBackend>(
 }
 
 /// A labelled, coloured band of (time s, mean N, std N).
-type ProfileGroup = (String, RGBAColor, Vec<(f64, f64, f64)>);
+pub(super) type ProfileGroup = (String, RGBAColor, Vec<(f64, f64, f64)>);
 
-fn draw_fz<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, tally: &FigureTally) -> DrawResult {
+pub(super) fn draw_fz<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    tally: &FigureTally,
+) -> DrawResult {
     root.fill(&WHITE).map_err(err)?;
     let groups: Vec<ProfileGroup> = FZ_GROUPS
         .iter()
@@ -472,7 +465,10 @@ fn draw_fz<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, tally: &FigureTally
     root.present().map_err(err)
 }
 
-fn draw_tune<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, evals: &[Evaluation]) -> DrawResult {
+pub(super) fn draw_tune<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    evals: &[Evaluation],
+) -> DrawResult {
     root.fill(&WHITE).map_err(err)?;
     let f_max = evals
         .iter()
@@ -514,295 +510,4 @@ fn draw_tune<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, evals: &[Evaluati
     }
     draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present().map_err(err)
-}
-
-/// Draws the gain search (`figures/tune.png` and `.svg`).
-pub fn write_tune(dir: &Path, evals: &[Evaluation]) -> Result<()> {
-    render(
-        dir,
-        "tune",
-        |a| draw_tune(a, evals),
-        |a| draw_tune(a, evals),
-    )
-}
-
-/// A finished campaign's whole report in `dir`: each pair's manifold figure (from the cache in
-/// `cache_dir`, never built), then the summary, the figures and report.html ([`write_all`]).
-pub fn write_campaign_report(
-    dir: &Path,
-    scenario: &Scenario,
-    source: &dyn RecordSource,
-    cache_dir: &Path,
-) -> Result<Summary> {
-    write_manifolds(dir, scenario, cache_dir)?;
-    write_all(dir, scenario, source)
-}
-
-/// Writes `summary.json`, `summary.csv` and the report (`report.html`, `figures/`) into `dir`,
-/// from two streaming passes over `source`.
-pub fn write_all(dir: &Path, scenario: &Scenario, source: &dyn RecordSource) -> Result<Summary> {
-    let mut cells = SummaryTally::new(scenario);
-    let mut figures = FigureTally::per_clearance(scenario);
-    two_passes(source, &mut |r, pass| {
-        cells.add(r, pass);
-        figures.iter_mut().for_each(|f| f.add(r, pass));
-    })?;
-    let summary = cells.finish(scenario);
-    let write = crate::files::write_atomically;
-    write(
-        &dir.join("summary.json"),
-        &serde_json::to_vec_pretty(&summary).expect("summary serialises"),
-    )?;
-    write(
-        &dir.join("summary.csv"),
-        &super::summary::summary_csv(&summary),
-    )?;
-    write_report(dir, scenario, &summary, &figures)?;
-    Ok(summary)
-}
-
-/// Draws the three figures into `dir/figures` and writes `dir/report.html`.
-fn write_report(
-    dir: &Path,
-    scenario: &Scenario,
-    summary: &Summary,
-    figures: &[FigureTally],
-) -> Result<()> {
-    let mut geometries: Vec<String> = Vec::new();
-    for c in &summary.cells {
-        if !geometries.contains(&c.cell.geometry) {
-            geometries.push(c.cell.geometry.clone());
-        }
-    }
-    let series = success_series(summary, &geometries);
-    render(
-        dir,
-        "fig4_success",
-        |a| draw_success(a, &geometries, &series),
-        |a| draw_success(a, &geometries, &series),
-    )?;
-    for tally in figures {
-        let (name, _) = tally.suffixes();
-        render(
-            dir,
-            &format!("fig5_errors{name}"),
-            |a| draw_errors(a, tally),
-            |a| draw_errors(a, tally),
-        )?;
-        render(
-            dir,
-            &format!("fig6_fz{name}"),
-            |a| draw_fz(a, tally),
-            |a| draw_fz(a, tally),
-        )?;
-    }
-    let replays = replays::list(dir)?;
-    let manifolds = manifold_figures(dir)?;
-    let clearances: Vec<f64> = figures.iter().filter_map(|f| f.clearance_mm).collect();
-    let page = html(scenario, summary, &replays, &manifolds, &clearances);
-    crate::files::write_atomically(&dir.join("report.html"), page.as_bytes())
-}
-
-/// The prefix of the figures of the reference manifolds.
-const MANIFOLD_FIGURE: &str = "manifold-";
-
-/// Draws the reference manifold of every pair the manifold method ran on, as `manifold plot`
-/// does, into `dir/figures/manifold-{geometry}-{clearance}mm.png` and `.svg`, from the cache
-/// folder `cache_dir` (a manifold that is not there is not drawn; nothing is built).
-pub fn write_manifolds(dir: &Path, scenario: &Scenario, cache_dir: &Path) -> Result<()> {
-    let mut drawn = Vec::new();
-    for cell in scenario.cells() {
-        let key = (cell.geometry.clone(), cell.clearance_mm.to_bits());
-        if cell.method != Method::Manifold || drawn.contains(&key) {
-            continue;
-        }
-        drawn.push(key);
-        let pair = scenario.pair(&cell)?;
-        if let Some(m) = cache::cached(
-            &pair,
-            &scenario.manifold,
-            &scenario.cell_params_for(&cell),
-            cache_dir,
-        )? {
-            let name = format!("{MANIFOLD_FIGURE}{}-{}mm", cell.geometry, cell.clearance_mm);
-            plot::plot(
-                &m.points,
-                &plot::label(&m.meta),
-                &dir.join("figures"),
-                &name,
-            )?;
-        }
-    }
-    Ok(())
-}
-
-/// The manifold figures in `dir/figures` (names without extension, sorted).
-fn manifold_figures(dir: &Path) -> Result<Vec<String>> {
-    let folder = dir.join("figures");
-    let Ok(entries) = std::fs::read_dir(&folder) else {
-        return Ok(Vec::new());
-    };
-    let mut names: Vec<String> = entries
-        .filter_map(|e| e.ok())
-        .filter_map(|e| {
-            let name = e.file_name().to_string_lossy().into_owned();
-            let stem = name.strip_suffix(".png")?;
-            stem.starts_with(MANIFOLD_FIGURE).then(|| stem.to_string())
-        })
-        .collect();
-    names.sort();
-    Ok(names)
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
-
-fn html(
-    scenario: &Scenario,
-    summary: &Summary,
-    replay_links: &[ReplayLink],
-    manifolds: &[String],
-    clearances_mm: &[f64],
-) -> String {
-    let rows = table_rows(summary, replay_links);
-    let axes: String = AXES.iter().map(|a| format!("<th>MAE {a}</th>")).collect();
-    format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n{pp}<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th><th>partial to full insertion s (successes)</th><th>replays</th></tr>\n{rows}</table>\n{figures}{rp}</body></html>\n",
-        name = escape(&scenario.name),
-        fp = summary.fingerprint,
-        n = scenario.trials,
-        om = scenario.offset_mm,
-        od = scenario.offset_deg,
-        sm = scenario.success_mm,
-        pp = pair_physics_html(scenario),
-        figures = figures_html(manifolds, clearances_mm),
-        rp = replays::section(replay_links, &scenario.cells()),
-    )
-}
-
-/// One table row per cell (with its replay links) and per pooled row.
-fn table_rows(summary: &Summary, replay_links: &[ReplayLink]) -> String {
-    let mut rows = String::new();
-    let indexed = summary.cells.iter().enumerate().map(|(i, c)| (Some(i), c));
-    for (index, c) in indexed.chain(summary.pooled.iter().map(|c| (None, c))) {
-        let mae = |a: usize| c.mae.map_or(String::new(), |m| format!("{:.2}", m[a]));
-        let fz =
-            |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std));
-        rows += &format!(
-            "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
-            escape(&c.cell.geometry),
-            c.cell.clearance_mm,
-            c.cell.method,
-            c.cell.t_obs_s,
-            c.successes,
-            c.trials,
-            c.success_ci95[0] * 100.0,
-            c.success_ci95[1] * 100.0,
-            (0..6)
-                .map(|a| format!("<td>{}</td>", mae(a)))
-                .collect::<String>(),
-            fz(c.peak_fz_success_n),
-            fz(c.peak_fz_failure_n),
-            c.partial_to_full_s
-                .map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std)),
-            index.map_or(String::new(), |i| replays::cell_link(replay_links, i)),
-        );
-    }
-    rows
-}
-
-/// The pairs that ran their own physics (`[[pair_physics]]`), so that a reader of the table
-/// knows which rows were simulated differently; empty when none did.
-fn pair_physics_html(scenario: &Scenario) -> String {
-    let items: Vec<String> = scenario
-        .pair_physics
-        .iter()
-        .map(|o| {
-            let at = o
-                .clearance_mm
-                .map_or("every clearance".into(), |c| format!("{c} mm"));
-            let set = toml::to_string(&o.physics).expect("physics overrides serialise");
-            let set = set.trim().replace('\n', ", ");
-            format!("{} at {at}: {}", escape(&o.geometry), escape(&set))
-        })
-        .collect();
-    if items.is_empty() {
-        return String::new();
-    }
-    format!(
-        "<p>Physics of their own (<code>[[pair_physics]]</code>, over the scenario's): {}.</p>\n",
-        items.join("; ")
-    )
-}
-
-/// The paper's figures pooled, per clearance, and the reference manifolds'.
-fn figures_html(manifolds: &[String], clearances_mm: &[f64]) -> String {
-    let figure = |name: &str, caption: &str| {
-        format!(
-            "<figure><img src=\"figures/{name}.png\" alt=\"{caption}\" width=\"960\"><figcaption>{caption} (<a href=\"figures/{name}.svg\">SVG</a>)</figcaption></figure>\n"
-        )
-    };
-    let mut out = figure(
-        "fig4_success",
-        "Success rate per geometry, method vs direct (paper Fig. 4)",
-    );
-    out += &figure(
-        "fig5_errors",
-        "Success rate against position and orientation error (paper Fig. 5)",
-    );
-    out += &figure(
-        "fig6_fz",
-        "|Fz| profiles during insertion, success and failure, method vs direct (paper Fig. 6)",
-    );
-    for c in clearances_mm {
-        out += &figure(
-            &format!("fig5_errors-{c}mm"),
-            &format!("Success rate against the estimate's errors at {c} mm (Fig. 5)"),
-        );
-        out += &figure(
-            &format!("fig6_fz-{c}mm"),
-            &format!("|Fz| profiles during insertion at {c} mm (Fig. 6)"),
-        );
-    }
-    for name in manifolds {
-        out += &figure(
-            name,
-            &format!(
-                "The reference contact manifold, {} (paper IV-B)",
-                &name[MANIFOLD_FIGURE.len()..]
-            ),
-        );
-    }
-    out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_report_names_the_pairs_with_physics_of_their_own() {
-        let text = r#"
-name = "t"
-trials = 1
-geometries = ["cross", "gear"]
-clearances_mm = [0.1]
-t_obs_s = [6.0]
-methods = ["manifold"]
-"#;
-        let plain = Scenario::parse(text).unwrap();
-        assert_eq!(pair_physics_html(&plain), "");
-        let own = format!(
-            "{text}\n[[pair_physics]]\ngeometry = \"gear\"\n\
-             physics = {{ pgs_iterations = 8, friction = 0.2 }}\n"
-        );
-        let html = pair_physics_html(&Scenario::parse(&own).unwrap());
-        assert!(
-            html.contains("gear at every clearance: pgs_iterations = 8, friction = 0.2."),
-            "{html}"
-        );
-    }
 }
