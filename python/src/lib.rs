@@ -166,10 +166,7 @@ fn campaign(
     let scenario = Scenario::load(&scenario).map_err(py_err)?;
     let shard = shard.map(Shard::parse).transpose().map_err(py_err)?;
     let pool = run::worker_pool(threads).map_err(py_err)?;
-    let cache_dir = match cache_dir {
-        Some(d) => d,
-        None => cache::default_dir().map_err(py_err)?,
-    };
+    let cache_dir = cache::folder(cache_dir.as_deref()).map_err(py_err)?;
     let progress = Progress {
         callback: progress,
         total: AtomicUsize::new(0),

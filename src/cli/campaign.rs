@@ -97,10 +97,7 @@ pub(super) fn run_options<'a>(
     bars: &'a Bars,
 ) -> Result<RunOptions<'a>> {
     Ok(RunOptions {
-        cache_dir: match cache_dir {
-            Some(d) => d.clone(),
-            None => cache::default_dir()?,
-        },
+        cache_dir: cache::folder(cache_dir.as_deref())?,
         progress: bars,
     })
 }
@@ -137,10 +134,7 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
 
 pub fn merge_command(args: MergeArgs) -> Result<i32> {
     let (scenario, trials, count) = campaign::merge(&args.dirs, &args.out)?;
-    let cache_dir = match &args.cache_dir {
-        Some(d) => d.clone(),
-        None => cache::default_dir()?,
-    };
+    let cache_dir = cache::folder(args.cache_dir.as_deref())?;
     let summary = report::write_campaign_report(&args.out, &scenario, &trials, &cache_dir)?;
     print!("{}", summary::summary_table(&summary));
     println!(

@@ -87,8 +87,12 @@ pub trait BuildProgress: Sync {
 /// No progress display.
 impl BuildProgress for () {}
 
-/// The default cache folder.
-pub fn default_dir() -> Result<PathBuf> {
+/// The cache folder every command and the Python package use: `given` (`--cache-dir`), else
+/// `$XDG_CACHE_HOME/pegtwin`, else `~/.cache/pegtwin`.
+pub fn folder(given: Option<&Path>) -> Result<PathBuf> {
+    if let Some(d) = given {
+        return Ok(d.to_path_buf());
+    }
     if let Some(x) = std::env::var_os("XDG_CACHE_HOME").filter(|v| !v.is_empty()) {
         return Ok(Path::new(&x).join("pegtwin"));
     }
@@ -124,10 +128,7 @@ pub fn resolve(
     dir: Option<&Path>,
     progress: &dyn BuildProgress,
 ) -> Result<Manifold> {
-    let dir = match dir {
-        Some(d) => d.to_path_buf(),
-        None => default_dir()?,
-    };
+    let dir = folder(dir)?;
     let wanted = Wanted {
         pair,
         robot,
