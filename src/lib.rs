@@ -30,11 +30,12 @@
 //!   and report.html ([`campaign::report`]), gain tuning ([`campaign::tune`]) and the regression
 //!   gate ([`campaign::check`]).
 //!
-//! Below all three: [`pose`] (6-D poses and SE(3)), [`error`], [`files`], [`figures`] (PNG and SVG),
+//! Below all three: [`pose`] (6-D poses and SE(3)), [`error`], [`choice`] (named choices), [`files`], [`figures`] (PNG and SVG),
 //! [`schedule`] (the order work takes the cores, longest first). The command line lives in
 //! the binary (`src/main.rs`, `src/cli/`) and only parses, calls this library and prints.
 
 pub mod campaign;
+pub mod choice;
 pub mod error;
 pub mod figures;
 pub mod files;

@@ -11,12 +11,14 @@ use pegtwin::campaign::replays::Replays;
 use pegtwin::campaign::report;
 use pegtwin::campaign::run::{self, CampaignOptions, CampaignProgress, RunOptions, Shard};
 use pegtwin::campaign::scenario::Scenario;
+use pegtwin::choice::Choice;
 use pegtwin::error::Error;
+use pegtwin::method::config::{Method, Start};
 use pegtwin::method::env::{EnvConfig, PegEnv, Step, StepInfo};
 use pegtwin::method::manifold::cache::{self, BuildProgress};
 use pegtwin::method::manifold::{Manifold, file};
 use pegtwin::method::register::{RegistrationConfig, Solver, register as register_hole};
-use pegtwin::method::request::{TrialRequest, method_by_name, start_by_name};
+use pegtwin::method::request::TrialRequest;
 use pegtwin::pose::Pose6;
 use pegtwin::twin::assembly::PairSource;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
@@ -75,8 +77,8 @@ fn trial_json(
     };
     let request = TrialRequest {
         t_obs_s: t_obs_s.unwrap_or(defaults.t_obs_s),
-        method: method_by_name(method).map_err(py_err)?,
-        start: start_by_name(start).map_err(py_err)?,
+        method: Method::by_name(method).map_err(py_err)?,
+        start: Start::by_name(start).map_err(py_err)?,
         seed,
         offset_mm: offset_mm.unwrap_or(defaults.offset_mm),
         offset_deg: offset_deg.unwrap_or(defaults.offset_deg),
@@ -153,16 +155,7 @@ fn campaign(
     replays: &str,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
-    let replays = match replays {
-        "failures" => Replays::Failures,
-        "all" => Replays::All,
-        "none" => Replays::None,
-        other => {
-            return Err(PyValueError::new_err(format!(
-                "replays '{other}': expected failures, all or none"
-            )));
-        }
-    };
+    let replays = Replays::by_name(replays).map_err(py_err)?;
     let scenario = Scenario::load(&scenario).map_err(py_err)?;
     let shard = shard.map(Shard::parse).transpose().map_err(py_err)?;
     let pool = run::worker_pool(threads).map_err(py_err)?;
@@ -288,16 +281,9 @@ fn register_json(
         .collect();
     let init = Pose6(std::array::from_fn(|i| init[i]));
     let defaults = RegistrationConfig::default();
-    let solver = match solver {
-        None => defaults.solver,
-        Some("paper") => Solver::Paper,
-        Some("least-squares") => Solver::LeastSquares,
-        Some(other) => {
-            return Err(PyValueError::new_err(format!(
-                "solver '{other}': expected paper or least-squares"
-            )));
-        }
-    };
+    let solver = solver
+        .map_or(Ok(defaults.solver), Solver::by_name)
+        .map_err(py_err)?;
     let config = RegistrationConfig {
         solver,
         iterations: iterations.unwrap_or(defaults.iterations),
@@ -344,7 +330,7 @@ impl Env {
         let config = EnvConfig {
             control_hz: control_hz.unwrap_or(d.control_hz),
             episode_s: episode_s.unwrap_or(d.episode_s),
-            start: start_by_name(start).map_err(py_err)?,
+            start: Start::by_name(start).map_err(py_err)?,
             offset_range: [m, m, m, a, a, a],
             max_step_m: max_step_mm.map_or(d.max_step_m, |v| v * 1e-3),
             max_step_rad: max_step_deg.map_or(d.max_step_rad, f64::to_radians),

@@ -12,6 +12,7 @@
 
 use crate::campaign::records::TrialSpec;
 use crate::campaign::scenario::Condition;
+use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
 use crate::method::manifold::Manifold;
 use crate::method::session::Recorder;
@@ -42,6 +43,27 @@ pub enum Replays {
     All,
     /// None.
     None,
+}
+
+impl Choice for Replays {
+    const WHAT: &'static str = "replays";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "failures",
+            value: Replays::Failures,
+            help: "every failed or faulted trial among the first 50 of each cell, and the first two trials of every cell",
+        },
+        Named {
+            name: "all",
+            value: Replays::All,
+            help: "every trial",
+        },
+        Named {
+            name: "none",
+            value: Replays::None,
+            help: "none",
+        },
+    ];
 }
 
 impl Replays {

@@ -12,8 +12,9 @@
 
 use crate::campaign::records::{RecordSource, TrialRecord};
 use crate::campaign::scenario::{Condition, Scenario};
+use crate::choice::Choice;
 use crate::error::Result;
-use crate::method::config::Method;
+
 use serde::{Deserialize, Serialize};
 
 /// z of the two-sided 95 % normal quantile.
@@ -330,13 +331,6 @@ impl CellTally {
     }
 }
 
-fn method_name(m: Method) -> &'static str {
-    match m {
-        Method::Manifold => "manifold",
-        Method::Direct => "direct",
-    }
-}
-
 fn opt(v: Option<f64>, digits: usize) -> String {
     v.map_or(String::new(), |v| format!("{v:.digits$}"))
 }
@@ -381,7 +375,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
         let mut row = vec![
             c.cell.geometry.clone(),
             c.cell.clearance_mm.to_string(),
-            method_name(c.cell.method).into(),
+            c.cell.method.name().into(),
             c.cell.t_obs_s.to_string(),
             c.trials.to_string(),
             c.successes.to_string(),
@@ -433,7 +427,7 @@ pub fn summary_table(summary: &Summary) -> String {
             "{:<10} {:>6} {:<8} {:>5} {:>4}/{:<4} {:>5.0}-{:<5.0}% {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11} {:>9}\n",
             c.cell.geometry,
             c.cell.clearance_mm,
-            method_name(c.cell.method),
+            c.cell.method.name(),
             c.cell.t_obs_s,
             c.successes,
             c.trials,
@@ -462,6 +456,7 @@ pub fn summary_table(summary: &Summary) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::method::config::Method;
 
     fn cell(geometry: &str, clearance_mm: f64, method: Method, t_obs_s: f64) -> Condition {
         Condition {

@@ -20,6 +20,7 @@
 use crate::campaign::records::TrialRecord;
 use crate::campaign::run::{Prepared, RunOptions, all_trials, prepare, run_trials};
 use crate::campaign::scenario::{GainsOverride, Scenario};
+use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
 use crate::method::config::Method;
 use rand::SeedableRng;
@@ -41,6 +42,22 @@ pub enum TuneTarget {
     /// for higher success", V-B): its insertion stiffness and damping and its seat force
     /// (`[direct.gains.insert]`, `[direct.insertion]`); only the scenario's direct cells run.
     Direct,
+}
+
+impl Choice for TuneTarget {
+    const WHAT: &'static str = "target";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "gains",
+            value: TuneTarget::Gains,
+            help: "the observation and insertion gains of every method",
+        },
+        Named {
+            name: "direct",
+            value: TuneTarget::Direct,
+            help: "the direct baseline's insertion: stiffness, damping and seat force (the paper tuned it)",
+        },
+    ];
 }
 
 /// One tuned parameter: its name (a column of tune.csv), its range, and whether it is drawn

@@ -1,15 +1,17 @@
 //! `pegtwin campaign`, `merge`, `check` and `tune`.
 
-use super::choices::{ReplaysArg, TuneTargetChoice};
+use super::choices::choice;
 use super::progress::Bars;
 use clap::Args;
 use pegtwin::campaign::check::{Baseline, compare, findings_table};
 use pegtwin::campaign::records::{TrialsFile, index_records};
+use pegtwin::campaign::replays::Replays;
 use pegtwin::campaign::run::{self as campaign, CampaignOptions, RunOptions, Shard};
 use pegtwin::campaign::scenario::Scenario;
-use pegtwin::campaign::tune::{TuneOptions, tune};
+use pegtwin::campaign::tune::{TuneOptions, TuneTarget, tune};
 use pegtwin::campaign::usage::Stopwatch;
 use pegtwin::campaign::{report, summary};
+use pegtwin::choice::Choice;
 use pegtwin::error::{Error, Result};
 use pegtwin::method::manifold::cache;
 use std::path::{Path, PathBuf};
@@ -34,8 +36,8 @@ pub struct CampaignArgs {
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
     /// Which trials get a 3-D replay page in OUT/replays, linked from report.html.
-    #[arg(long, value_enum, default_value = "failures")]
-    pub replays: ReplaysArg,
+    #[arg(long, value_parser = choice::<Replays>(), default_value = Replays::Failures.name())]
+    pub replays: Replays,
 }
 
 #[derive(Args)]
@@ -82,8 +84,8 @@ pub struct TuneArgs {
     pub seed: u64,
     /// What to tune: the method's observation and insertion gains, or the direct baseline's
     /// insertion (stiffness, damping, seat force) on the scenario's direct cells.
-    #[arg(long, value_enum, default_value_t = TuneTargetChoice::Gains)]
-    pub target: TuneTargetChoice,
+    #[arg(long, value_parser = choice::<TuneTarget>(), default_value = TuneTarget::Gains.name())]
+    pub target: TuneTarget,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -113,7 +115,7 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
     let options = CampaignOptions {
         shard,
         resume: args.resume,
-        replays: args.replays.into(),
+        replays: args.replays,
     };
     let pool = campaign::worker_pool(args.threads)?;
     let watch = Stopwatch::start(pool.current_num_threads());
@@ -218,9 +220,9 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
         candidates: args.candidates,
         first_trials: args.first_trials,
         seed: args.seed,
-        target: args.target.into(),
+        target: args.target,
     };
-    let direct_only = matches!(args.target, TuneTargetChoice::Direct);
+    let direct_only = args.target == TuneTarget::Direct;
     let cells = scenario
         .cells()
         .iter()

@@ -1,12 +1,13 @@
 //! The command line: parses, calls the library, prints. Flags that people type take millimetres
 //! and degrees and say so in their names.
 
-use choices::UnitsArg;
+use choices::choice;
 use clap::{Args, Parser, Subcommand};
+use pegtwin::choice::Choice;
 use pegtwin::error::{Error, Result};
 use pegtwin::twin::assembly::PairSource;
 use pegtwin::twin::cell::CellParams;
-use pegtwin::twin::geometry::mesh::load_pair;
+use pegtwin::twin::geometry::mesh::{MeshUnits, load_pair};
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
 use pegtwin::twin::robot::RobotModel;
 use pegtwin::twin::robot::spec::RobotSpec;
@@ -158,8 +159,8 @@ pub struct PairArgs {
     #[arg(long, requires_all = ["peg_mesh", "depth_mm"])]
     pub hole_mesh: Option<PathBuf>,
     /// Length unit of the mesh files.
-    #[arg(long, value_enum, default_value = "m")]
-    pub mesh_units: UnitsArg,
+    #[arg(long, value_parser = choice::<MeshUnits>(), default_value = MeshUnits::M.name())]
+    pub mesh_units: MeshUnits,
     /// Cavity depth of a mesh hole, mouth to floor, mm.
     #[arg(long)]
     pub depth_mm: Option<f64>,
@@ -223,7 +224,7 @@ impl PairArgs {
                         "--depth-mm {depth_mm}: expected the cavity depth of the mesh hole, more than 0 mm"
                     )));
                 }
-                let units = self.mesh_units.into();
+                let units = self.mesh_units;
                 let (pair, warnings) =
                     load_pair(peg_path, hole_path, units, clearance_m, depth_mm * 1e-3)?;
                 for w in warnings {

@@ -1,8 +1,9 @@
 //! `pegtwin manifold ...` and `pegtwin register`: manifold files and Algorithm 1 from the command
 //! line.
 
-use super::choices::SolverArg;
+use super::choices::choice;
 use clap::{Args, Subcommand, ValueEnum};
+use pegtwin::choice::Choice;
 use pegtwin::error::{Error, Result};
 use pegtwin::method::manifold::cache::ManifoldSpec;
 use pegtwin::method::manifold::file::{self, read_csv};
@@ -10,7 +11,7 @@ use pegtwin::method::manifold::plot;
 use pegtwin::method::manifold::synthetic::SyntheticPair;
 use pegtwin::method::manifold::{DEFAULT_NORMAL_K, MAX_POINTS, Manifold, ManifoldMeta, UNITS};
 use pegtwin::method::register::{
-    DEFAULT_RESTARTS, DEFAULT_SIGMA_DEG, Registration, RegistrationConfig, register,
+    DEFAULT_RESTARTS, DEFAULT_SIGMA_DEG, Registration, RegistrationConfig, Solver, register,
 };
 use pegtwin::pose::{Pose6, PoseMetric};
 use std::path::{Path, PathBuf};
@@ -147,8 +148,8 @@ pub struct RegisterArgs {
     #[arg(long, default_value_t = RegistrationConfig::default().seed)]
     pub seed: u64,
     /// Update rule: the paper's (Algorithm 1) or least squares on the same residuals.
-    #[arg(long, value_enum, default_value = "least-squares")]
-    pub solver: SolverArg,
+    #[arg(long, value_parser = choice::<Solver>(), default_value = Solver::LeastSquares.name())]
+    pub solver: Solver,
     /// Standard deviation of the restarts' initial translation, mm per axis.
     #[arg(long, default_value_t = RegistrationConfig::default().sigma_m * 1e3)]
     pub sigma_mm: f64,
@@ -459,7 +460,7 @@ fn print_info(path: &Path, m: &Manifold, json: bool) {
 pub fn register_command(args: RegisterArgs) -> Result<i32> {
     let init = parse_pose("--init", &args.init)?;
     let cfg = RegistrationConfig {
-        solver: args.solver.into(),
+        solver: args.solver,
         iterations: args.iterations,
         tolerance_mm: args.tolerance_mm,
         restarts: args.restarts,

@@ -2,14 +2,15 @@
 //! one trial of a campaign again, on its own, to trace or replay it.
 
 use super::PairChoice;
-use super::choices::{MethodArg, StartArg};
+use super::choices::choice;
 use super::progress::Bars;
 use clap::Args;
 use pegtwin::campaign::records::TrialRecord;
 use pegtwin::campaign::run as campaign;
 use pegtwin::campaign::scenario::Scenario;
+use pegtwin::choice::Choice;
 use pegtwin::error::Result;
-use pegtwin::method::config::TrialConfig;
+use pegtwin::method::config::{Method, Start, TrialConfig};
 use pegtwin::method::manifold::Manifold;
 use pegtwin::method::request::{TrialRequest, default_offsets_mm_deg};
 use pegtwin::method::session::{Recorder, trace_csv};
@@ -68,11 +69,11 @@ pub struct TrialArgs {
     /// Observation time, s.
     #[arg(long, default_value_t = TrialConfig::default().t_obs_s, allow_negative_numbers = true)]
     pub t_obs: f64,
-    #[arg(long, value_enum, default_value = "manifold")]
-    pub method: MethodArg,
+    #[arg(long, value_parser = choice::<Method>(), default_value = Method::Manifold.name())]
+    pub method: Method,
     /// Start partially inserted (the paper's set-up) or above the hole with a spiral search.
-    #[arg(long, value_enum, default_value = "partial")]
-    pub start: StartArg,
+    #[arg(long, value_parser = choice::<Start>(), default_value = Start::Partial.name())]
+    pub start: Start,
     /// Trial seed: draws the hole offset and seeds every noise source.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -101,8 +102,8 @@ impl TrialArgs {
         TrialRequest {
             pair: self.pair.source(),
             t_obs_s: self.t_obs,
-            method: self.method.into(),
-            start: self.start.into(),
+            method: self.method,
+            start: self.start,
             seed: self.seed,
             offset_mm: self.offset_mm,
             offset_deg: self.offset_deg,

@@ -2,6 +2,7 @@
 //! observation, IV-D registration, IV-E insertion, V-A the experiment's offsets), with the values
 //! the paper's experiment runs at as defaults.
 
+use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
 use crate::method::register::RegistrationConfig;
 use crate::twin::control::{ImpedanceGains, is_positive};
@@ -26,6 +27,38 @@ pub enum Start {
     /// Above the nominal hole: approach, then a spiral search pressing on the surface until the
     /// peg drops in, then down to the partial insertion.
     Above,
+}
+
+impl Choice for Method {
+    const WHAT: &'static str = "method";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "manifold",
+            value: Method::Manifold,
+            help: "estimate the hole pose from the contact manifold, then insert along the estimate",
+        },
+        Named {
+            name: "direct",
+            value: Method::Direct,
+            help: "the paper's baseline: observe, then insert along the peg's z with no estimate",
+        },
+    ];
+}
+
+impl Choice for Start {
+    const WHAT: &'static str = "start";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "partial",
+            value: Start::Partial,
+            help: "partially inserted in the true hole (the paper's set-up)",
+        },
+        Named {
+            name: "above",
+            value: Start::Above,
+            help: "above the nominal hole: approach, then a spiral search until the peg drops in",
+        },
+    ];
 }
 
 /// Shortest and longest observation a trial accepts, s (the paper: 6-10 s; 0.1 s is a hundred

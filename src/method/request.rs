@@ -185,25 +185,3 @@ pub fn default_offsets_mm_deg() -> (f64, f64) {
     let r = TrialConfig::default().offset_range;
     (r[0] * 1e3, r[3].to_degrees())
 }
-
-/// A method by its name in records and flags (`manifold`, `direct`).
-pub fn method_by_name(name: &str) -> Result<Method> {
-    match name {
-        "manifold" => Ok(Method::Manifold),
-        "direct" => Ok(Method::Direct),
-        _ => Err(Error::Input(format!(
-            "method '{name}': expected manifold or direct"
-        ))),
-    }
-}
-
-/// A start by its name in records and flags (`partial`, `above`).
-pub fn start_by_name(name: &str) -> Result<Start> {
-    match name {
-        "partial" => Ok(Start::Partial),
-        "above" => Ok(Start::Above),
-        _ => Err(Error::Input(format!(
-            "start '{name}': expected partial or above"
-        ))),
-    }
-}

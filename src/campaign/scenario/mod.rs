@@ -14,6 +14,7 @@ pub use overrides::{
     DirectOverride, GainsOverride, InsertionOverride, PairPhysics, PhaseGains, PhysicsOverride,
 };
 
+use crate::choice::Choice;
 use crate::error::{Error, Result};
 use crate::method::config::{
     MAX_SUCCESS_EPS_M, MAX_T_OBS_S, MIN_T_OBS_S, Method, Start, TrialConfig,
@@ -130,10 +131,7 @@ pub struct Condition {
 impl Condition {
     /// A short label, e.g. `cross 0.5 mm manifold 6 s`.
     pub fn label(&self) -> String {
-        let m = match self.method {
-            Method::Manifold => "manifold",
-            Method::Direct => "direct",
-        };
+        let m = self.method.name();
         format!(
             "{} {} mm {m} {} s",
             self.geometry, self.clearance_mm, self.t_obs_s

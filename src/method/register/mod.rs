@@ -25,6 +25,7 @@ pub mod algorithm1;
 pub mod correspondence;
 pub mod least_squares;
 
+use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
 use crate::method::manifold::{Manifold, Resolution};
 use crate::pose::{Iso, Pose6, PoseMetric, se3_exp, se3_log, se3_mean};
@@ -50,6 +51,22 @@ pub enum Solver {
     Paper,
     /// Gauss-Newton on the same residuals with a Huber loss.
     LeastSquares,
+}
+
+impl Choice for Solver {
+    const WHAT: &'static str = "solver";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "paper",
+            value: Solver::Paper,
+            help: "Algorithm 1's update: SE(3) mean of the symmetric point-to-plane misalignments",
+        },
+        Named {
+            name: "least-squares",
+            value: Solver::LeastSquares,
+            help: "Gauss-Newton on the same residuals with a Huber loss",
+        },
+    ];
 }
 
 /// How the paper's update is applied (see the module documentation).

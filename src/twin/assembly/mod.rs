@@ -457,7 +457,7 @@ fn mjcf_solid(
         );
         match g.shape {
             mjcf::GeomShape::Mesh { file: mesh, scale } => {
-                let words = format!("{} x scale {scale:?}", units.name());
+                let words = format!("{} x scale {scale:?}", units.in_words());
                 let mut soup = read_mesh_scaled(&mesh, &(scale * s), &words)?;
                 for v in &mut soup.vertices {
                     *v = place * *v;
@@ -523,7 +523,7 @@ fn check_size(section: &str, e: &PartEntry, size_m: f64) -> Result<()> {
     if size_m >= lo && size_m <= hi {
         return Ok(());
     }
-    let units = e.units.map_or("", MeshUnits::name);
+    let units = e.units.map_or("", MeshUnits::in_words);
     Err(Error::Input(format!(
         "{section}.units: the {section} measures {:.4} m across, read as {units}: expected a part \
          between {} mm and {} m (are the units right?)",

@@ -4,6 +4,7 @@
 use super::PartPair;
 use super::planar::{P2, Region, triangulate};
 use super::solid::{BoundaryMesh, ConvexPiece, P3, Solid, TriangleSoup};
+use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
 use parry3d::math::Vector as V3f;
 use parry3d::query::PointQuery;
@@ -113,6 +114,22 @@ pub enum MeshUnits {
     M,
 }
 
+impl Choice for MeshUnits {
+    const WHAT: &'static str = "units";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "mm",
+            value: MeshUnits::Mm,
+            help: "millimetres",
+        },
+        Named {
+            name: "m",
+            value: MeshUnits::M,
+            help: "metres",
+        },
+    ];
+}
+
 impl MeshUnits {
     /// Metres per unit.
     pub fn scale(self) -> f64 {
@@ -123,7 +140,7 @@ impl MeshUnits {
     }
 
     /// The unit's name in words.
-    pub fn name(self) -> &'static str {
+    pub fn in_words(self) -> &'static str {
         match self {
             MeshUnits::Mm => "millimetres",
             MeshUnits::M => "metres",
@@ -134,7 +151,7 @@ impl MeshUnits {
 /// Reads an STL or OBJ file (by extension) into metres.
 pub fn read_mesh(path: &Path, units: MeshUnits) -> Result<TriangleSoup> {
     let s = units.scale();
-    read_mesh_scaled(path, &nalgebra::Vector3::repeat(s), units.name())
+    read_mesh_scaled(path, &nalgebra::Vector3::repeat(s), units.in_words())
 }
 
 /// Reads an STL or OBJ file into metres, each coordinate times `metres_per_unit` (per axis, as an
