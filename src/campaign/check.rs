@@ -182,7 +182,7 @@ mod tests {
     use super::*;
     use crate::campaign::records::{TrialSpec, read_records};
     use crate::campaign::run::{
-        CampaignOptions, Prepared, RunOptions, Runner, Shard, campaign_with, run_one,
+        CampaignOptions, Plan, RunOptions, Runner, Shard, campaign_with, run_one,
     };
     use crate::campaign::scenario::Condition;
     use crate::campaign::scenario::Scenario;
@@ -257,10 +257,10 @@ mod tests {
         .unwrap();
         let dir = std::env::temp_dir().join(format!("pegtwin-errtrial-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let inject = |s: &Scenario, p: &Prepared, spec: &TrialSpec| match spec.trial {
+        let inject = |p: &Plan, spec: &TrialSpec| match spec.trial {
             1 => panic!("injected"),
             2 => Err(Error::Input("injected error".into())),
-            _ => run_one(s, p, spec),
+            _ => run_one(p, spec),
         };
         let run = RunOptions {
             cache_dir: dir.join("cache"),

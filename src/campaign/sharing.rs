@@ -9,7 +9,7 @@
 //! is the one its trial gives alone, bit for bit.
 
 use crate::campaign::records::TrialSpec;
-use crate::campaign::scenario::Scenario;
+use crate::campaign::scenario::PlannedCell;
 use std::collections::HashMap;
 
 /// `trials`, in their order, gathered into the pieces of work a campaign runs: each piece is
@@ -17,22 +17,19 @@ use std::collections::HashMap;
 /// same seed, pair and cell parameters, and trial settings that differ only in `t_obs` and after
 /// the observation (`TrialConfig::observes_like_but_for_budget`). A trial whose settings are
 /// invalid runs alone (its error is its own).
-pub fn share_observations(scenario: &Scenario, trials: &[TrialSpec]) -> Vec<Vec<TrialSpec>> {
-    let cells = scenario.cells();
-    let configs: Vec<_> = cells.iter().map(|c| scenario.trial_config(c)).collect();
-    let params: Vec<_> = cells.iter().map(|c| scenario.cell_params_for(c)).collect();
+pub fn share_observations(plan: &[PlannedCell], trials: &[TrialSpec]) -> Vec<Vec<TrialSpec>> {
     let alike = |a: &TrialSpec, b: &TrialSpec| {
-        let (ca, cb) = (&cells[a.cell], &cells[b.cell]);
+        let (ca, cb) = (&plan[a.cell], &plan[b.cell]);
         a.seed == b.seed
-            && ca.geometry == cb.geometry
-            && ca.clearance_mm == cb.clearance_mm
-            && params[a.cell] == params[b.cell]
-            && configs[a.cell].observes_like_but_for_budget(&configs[b.cell])
+            && ca.condition.geometry == cb.condition.geometry
+            && ca.condition.clearance_mm == cb.condition.clearance_mm
+            && ca.params == cb.params
+            && ca.config.observes_like_but_for_budget(&cb.config)
     };
     let mut pieces: Vec<Vec<TrialSpec>> = Vec::with_capacity(trials.len());
     let mut by_seed: HashMap<u64, Vec<usize>> = HashMap::new();
     for spec in trials {
-        if configs[spec.cell].ensure_valid().is_ok() {
+        if plan[spec.cell].config.ensure_valid().is_ok() {
             let open = by_seed.entry(spec.seed).or_default();
             if let Some(&piece) = open.iter().find(|&&p| alike(&pieces[p][0], spec)) {
                 pieces[piece].push(*spec);
@@ -48,6 +45,7 @@ pub fn share_observations(scenario: &Scenario, trials: &[TrialSpec]) -> Vec<Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::campaign::scenario::Scenario;
     use crate::method::seeds;
 
     /// Every trial of `s`, cell-major, seeded as a campaign seeds them.
@@ -74,7 +72,7 @@ mod tests {
     /// Labels of the cells of each piece of work with more than one trial.
     fn shared(s: &Scenario) -> Vec<Vec<String>> {
         let cells = s.cells();
-        share_observations(s, &all_trials(s))
+        share_observations(&s.plan(), &all_trials(s))
             .into_iter()
             .filter(|p| p.len() > 1)
             .map(|p| {
@@ -88,7 +86,7 @@ mod tests {
     #[test]
     fn the_trials_of_a_seed_share_one_observation_whatever_their_budget() {
         let s = scenario("");
-        let pieces = share_observations(&s, &all_trials(&s));
+        let pieces = share_observations(&s.plan(), &all_trials(&s));
         assert_eq!(pieces.iter().map(Vec::len).sum::<usize>(), 12);
         let piece = |g: &str, t: usize| {
             [

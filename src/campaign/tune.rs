@@ -18,7 +18,7 @@
 //! log-uniformly.
 
 use crate::campaign::records::TrialRecord;
-use crate::campaign::run::{Prepared, RunOptions, all_trials, prepare, run_trials};
+use crate::campaign::run::{Plan, Prepared, RunOptions, all_trials, prepare, run_trials};
 use crate::campaign::scenario::{GainsOverride, Scenario};
 use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
@@ -305,7 +305,7 @@ fn evaluate(
     s.trials = trials_per_cell;
     s.ensure_valid()?;
     let specs = all_trials(&s);
-    let records: Vec<TrialRecord> = run_trials(&s, prepared, &specs);
+    let records: Vec<TrialRecord> = run_trials(&Plan::new(&s, prepared), &specs);
     let successes = records.iter().filter(|r| r.result.success).count();
     let peaks: Vec<f64> = records
         .iter()

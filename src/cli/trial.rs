@@ -164,11 +164,10 @@ pub fn rerun_command(args: RerunArgs) -> Result<i32> {
     let bars = Bars::new(true);
     let options = super::campaign::run_options(&args.cache_dir, &bars)?;
     let (spec, prepared) = campaign::single_trial(&scenario, args.cell, args.trial, &options)?;
-    let result = args
-        .recording
-        .run(prepared.inputs(&scenario.cells()[spec.cell]), |recorder| {
-            campaign::run_one_recorded(&scenario, &prepared, &spec, recorder)
-        })?;
+    let plan = campaign::Plan::new(&scenario, &prepared);
+    let result = args.recording.run(plan.inputs(spec.cell), |recorder| {
+        campaign::run_one_recorded(&plan, &spec, recorder)
+    })?;
     if args.json {
         let record = TrialRecord {
             cell: spec.cell,

@@ -25,7 +25,7 @@ use crate::campaign::records::{
     write_sorted,
 };
 use crate::campaign::replays::{ReplayWriter, Replays};
-use crate::campaign::scenario::{Condition, Scenario};
+use crate::campaign::scenario::{Condition, PlannedCell, Scenario};
 use crate::campaign::sharing::share_observations;
 use crate::error::{Error, Result};
 use crate::method::config::{Method, Start, TrialConfig};
@@ -128,9 +128,37 @@ fn pair_key(cell: &Condition) -> (String, u64) {
     (cell.geometry.clone(), cell.clearance_mm.to_bits())
 }
 
+/// What a campaign's trials run from, resolved once: the scenario's cells with their settings
+/// and parameters ([`Scenario::plan`]), and the pairs, robots and manifolds [`prepare`]d for them.
+/// Tuning runs several plans (one per candidate's gains) on one preparation.
+pub struct Plan<'a> {
+    cells: Vec<PlannedCell>,
+    prepared: &'a Prepared,
+}
+
+impl<'a> Plan<'a> {
+    /// The plan of `scenario` on `prepared` (prepared for this scenario's pairs).
+    pub fn new(scenario: &Scenario, prepared: &'a Prepared) -> Self {
+        Plan {
+            cells: scenario.plan(),
+            prepared,
+        }
+    }
+
+    /// Cell `cell`.
+    pub fn cell(&self, cell: usize) -> &PlannedCell {
+        &self.cells[cell]
+    }
+
+    /// The pair of cell `cell`, its robot and its reference manifold (when its method registers).
+    pub fn inputs(&self, cell: usize) -> (&'a PartPair, &'a RobotModel, Option<&'a Manifold>) {
+        self.prepared.inputs(&self.cells[cell].condition)
+    }
+}
+
 impl Prepared {
     /// The pair of `cell`, its robot and its reference manifold (when its method registers).
-    pub fn inputs(&self, cell: &Condition) -> (&PartPair, &RobotModel, Option<&Manifold>) {
+    fn inputs(&self, cell: &Condition) -> (&PartPair, &RobotModel, Option<&Manifold>) {
         let key = pair_key(cell);
         (
             &self.pairs[&key],
@@ -223,21 +251,16 @@ pub fn single_trial(
 }
 
 /// Runs one trial of a campaign (the real one is [`run_one`]; a test may inject another).
-pub(crate) type RunOne<'a> =
-    dyn Fn(&Scenario, &Prepared, &TrialSpec) -> Result<TrialResult> + Sync + 'a;
+pub(crate) type RunOne<'a> = dyn Fn(&Plan, &TrialSpec) -> Result<TrialResult> + Sync + 'a;
 
 /// Runs `trials` in parallel on the current rayon pool and returns their records in the order of
 /// `trials` (for `tune`, which keeps them; a campaign streams them instead, see
 /// [`stream_trials_with`]). A trial that raises an error or panics is recorded with outcome
 /// `error` and its message, and the others go on.
-pub fn run_trials(
-    scenario: &Scenario,
-    prepared: &Prepared,
-    trials: &[TrialSpec],
-) -> Vec<TrialRecord> {
+pub fn run_trials(plan: &Plan, trials: &[TrialSpec]) -> Vec<TrialRecord> {
     trials
         .par_iter()
-        .map(|spec| guarded_trial(scenario, prepared, spec, &run_one))
+        .map(|spec| guarded_trial(plan, spec, &run_one))
         .collect()
 }
 
@@ -257,32 +280,29 @@ pub(crate) struct Runner<'a> {
 /// the trials' order, round by round, the longest of each round first ([`piece_cost`],
 /// [`crate::schedule`]). A stop asked for through `progress` is seen before each trial.
 fn stream_trials_with(
-    scenario: &Scenario,
-    prepared: &Prepared,
+    plan: &Plan,
     trials: &[TrialSpec],
     runner: &Runner<'_>,
     progress: &dyn CampaignProgress,
     on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
 ) -> Result<()> {
     let pieces = match runner.sharing {
-        Some(_) => share_observations(scenario, trials),
+        Some(_) => share_observations(&plan.cells, trials),
         None => trials.iter().map(|t| vec![*t]).collect(),
     };
     // Trial-major as before (a stopped run holds a like share of each cell), and longest first
     // within each round of trials: a long piece is not the last of its round to start.
     let mut costed: Vec<(f64, Vec<TrialSpec>)> = (pieces.into_iter())
-        .map(|p| (piece_cost(scenario, prepared, &p), p))
+        .map(|p| (piece_cost(plan, &p), p))
         .collect();
     costed.sort_by(|a, b| (a.1[0].trial.cmp(&b.1[0].trial)).then(b.0.total_cmp(&a.0)));
     let pieces: Vec<Vec<TrialSpec>> = costed.into_iter().map(|(_, p)| p).collect();
     schedule::try_in_order(&pieces, |piece| {
         let ran = match runner.sharing {
-            Some(replays) if piece.len() > 1 => {
-                run_shared(scenario, prepared, piece, replays, progress, on_done)
-            }
+            Some(replays) if piece.len() > 1 => run_shared(plan, piece, replays, progress, on_done),
             _ => piece.iter().try_for_each(|spec| {
                 go_on(progress)?;
-                on_done(&guarded_trial(scenario, prepared, spec, runner.one))
+                on_done(&guarded_trial(plan, spec, runner.one))
             }),
         };
         release_freed_memory();
@@ -295,11 +315,8 @@ fn stream_trials_with(
 /// [`crate::schedule`]): the simulated seconds it may run at most (the search's limit when it
 /// starts above the hole, the longest observation, each trial's alignment and insertion limit)
 /// times its pair's [`PartPair::relative_step_cost`].
-fn piece_cost(scenario: &Scenario, prepared: &Prepared, piece: &[TrialSpec]) -> f64 {
-    let cells = scenario.cells();
-    let configs: Vec<TrialConfig> = (piece.iter())
-        .map(|t| scenario.trial_config(&cells[t.cell]))
-        .collect();
+fn piece_cost(plan: &Plan, piece: &[TrialSpec]) -> f64 {
+    let configs: Vec<&TrialConfig> = (piece.iter()).map(|t| &plan.cell(t.cell).config).collect();
     let search = |c: &TrialConfig| match c.start {
         Start::Above => c.search.limit_s,
         Start::Partial => 0.0,
@@ -308,7 +325,7 @@ fn piece_cost(scenario: &Scenario, prepared: &Prepared, piece: &[TrialSpec]) -> 
         .map(|c| search(c) + c.t_obs_s)
         .fold(0.0, f64::max);
     let after: f64 = configs.iter().map(|c| c.align_s + c.insert_limit_s).sum();
-    let (pair, _, _) = prepared.inputs(&cells[piece[0].cell]);
+    let (pair, _, _) = plan.inputs(piece[0].cell);
     (observing + after) * pair.relative_step_cost()
 }
 
@@ -332,29 +349,26 @@ fn go_on(progress: &dyn CampaignProgress) -> Result<()> {
 /// is its own trial's. A stop is seen before each trial; a trial not run then runs alone when the
 /// campaign is resumed.
 fn run_shared(
-    scenario: &Scenario,
-    prepared: &Prepared,
+    plan: &Plan,
     trials: &[TrialSpec],
     replays: &ReplayWriter,
     progress: &dyn CampaignProgress,
     on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
 ) -> Result<()> {
     go_on(progress)?;
-    let cells = scenario.cells();
-    let budget = |t: &TrialSpec| scenario.trial_config(&cells[t.cell]).t_obs_s;
+    let budget = |t: &TrialSpec| plan.cell(t.cell).config.t_obs_s;
     let mut trials = trials.to_vec();
     trials.sort_by(|a, b| budget(a).total_cmp(&budget(b)));
     let longest = &trials[trials.len() - 1];
-    let (pair, robot, _) = prepared.inputs(&cells[longest.cell]);
-    let params = scenario.cell_params_for(&cells[longest.cell]);
-    let config = scenario.trial_config(&cells[longest.cell]);
+    let (pair, robot, _) = plan.inputs(longest.cell);
+    let PlannedCell { params, config, .. } = plan.cell(longest.cell);
     let mut watched = trials
         .iter()
         .any(|t| replays.may_want(t))
         .then(|| Replay::new(pair, robot));
     let mut observing = guarded(|| {
         let recorder = watched.as_mut().map(|r| r as &mut dyn Recorder);
-        Observing::start(pair, robot, &params, &config, longest.seed, recorder)
+        Observing::start(pair, robot, params, config, longest.seed, recorder)
     });
     for (i, spec) in trials.iter().enumerate() {
         if i > 0 {
@@ -372,20 +386,19 @@ fn run_shared(
         if let Err(message) = &at_budget {
             observing = Err(message.clone());
         }
-        let cell = &cells[spec.cell];
-        let (_, _, manifold) = prepared.inputs(cell);
-        let config = scenario.trial_config(cell);
+        let (_, _, manifold) = plan.inputs(spec.cell);
+        let config = &plan.cell(spec.cell).config;
         let mut replay = watched.clone().filter(|_| replays.may_want(spec));
         let result = at_budget.and_then(|observed| {
             guarded(|| {
                 let recorder = replay.as_mut().map(|r| r as &mut dyn Recorder);
-                finish_trial(observed, pair, &config, manifold, recorder)
+                finish_trial(observed, pair, config, manifold, recorder)
             })
         });
         if let Ok(result) = &result {
             replays.keep(spec, replay.as_ref(), result, manifold);
         }
-        let result = result.unwrap_or_else(|m| errored(scenario, prepared, spec, m));
+        let result = result.unwrap_or_else(|m| errored(plan, spec, m));
         on_done(&record(spec, result))?;
     }
     Ok(())
@@ -423,57 +436,32 @@ fn release_freed_memory() {
 
 /// One trial's record, whatever happens in it: an error or a panic becomes outcome `error` with
 /// its message, so one bad trial does not take a 10 000-trial campaign down.
-fn guarded_trial(
-    scenario: &Scenario,
-    prepared: &Prepared,
-    spec: &TrialSpec,
-    run: &RunOne<'_>,
-) -> TrialRecord {
-    let result = guarded(|| run(scenario, prepared, spec))
-        .unwrap_or_else(|message| errored(scenario, prepared, spec, message));
+fn guarded_trial(plan: &Plan, spec: &TrialSpec, run: &RunOne<'_>) -> TrialRecord {
+    let result = guarded(|| run(plan, spec)).unwrap_or_else(|message| errored(plan, spec, message));
     record(spec, result)
 }
 
 /// The trial `spec` of the campaign.
-pub fn run_one(scenario: &Scenario, prepared: &Prepared, spec: &TrialSpec) -> Result<TrialResult> {
-    run_one_recorded(scenario, prepared, spec, None)
+pub fn run_one(plan: &Plan, spec: &TrialSpec) -> Result<TrialResult> {
+    run_one_recorded(plan, spec, None)
 }
 
 /// The trial `spec` of the campaign, seen by `recorder` (a replay).
 pub fn run_one_recorded(
-    scenario: &Scenario,
-    prepared: &Prepared,
+    plan: &Plan,
     spec: &TrialSpec,
     recorder: Option<&mut dyn Recorder>,
 ) -> Result<TrialResult> {
-    let cell = &scenario.cells()[spec.cell];
-    let (pair, robot, manifold) = prepared.inputs(cell);
-    run_trial(
-        pair,
-        robot,
-        &scenario.cell_params_for(cell),
-        &scenario.trial_config(cell),
-        manifold,
-        spec.seed,
-        recorder,
-    )
+    let (pair, robot, manifold) = plan.inputs(spec.cell);
+    let PlannedCell { params, config, .. } = plan.cell(spec.cell);
+    run_trial(pair, robot, params, config, manifold, spec.seed, recorder)
 }
 
 /// The record of trial `spec` that could not run: `message` says why.
-fn errored(
-    scenario: &Scenario,
-    prepared: &Prepared,
-    spec: &TrialSpec,
-    message: String,
-) -> TrialResult {
-    let cell = &scenario.cells()[spec.cell];
-    errored_trial(
-        &prepared.pairs[&pair_key(cell)],
-        &scenario.cell_params_for(cell),
-        &scenario.trial_config(cell),
-        spec.seed,
-        message,
-    )
+fn errored(plan: &Plan, spec: &TrialSpec, message: String) -> TrialResult {
+    let (pair, _, _) = plan.inputs(spec.cell);
+    let PlannedCell { params, config, .. } = plan.cell(spec.cell);
+    errored_trial(pair, params, config, spec.seed, message)
 }
 
 /// The message of a panic's payload (a `&str` or a `String`, as `panic!` makes them).
@@ -512,10 +500,10 @@ pub fn campaign(
     run: &RunOptions,
 ) -> Result<CampaignRun> {
     let replays = ReplayWriter::new(out, options.replays);
-    let one = |s: &Scenario, p: &Prepared, spec: &TrialSpec| {
-        let (pair, robot, manifold) = p.inputs(&s.cells()[spec.cell]);
+    let one = |p: &Plan, spec: &TrialSpec| {
+        let (pair, robot, manifold) = p.inputs(spec.cell);
         replays.record(spec, (pair, robot, manifold), |recorder| {
-            run_one_recorded(s, p, spec, recorder)
+            run_one_recorded(p, spec, recorder)
         })
     };
     let runner = Runner {
@@ -569,7 +557,8 @@ pub(crate) fn campaign_with(
         run.progress.trial_done();
         Ok(())
     };
-    let ran = stream_trials_with(scenario, &prepared, &pending, runner, run.progress, &append);
+    let plan = Plan::new(scenario, &prepared);
+    let ran = stream_trials_with(&plan, &pending, runner, run.progress, &append);
     run.progress.trials_finished();
     ran?;
     let entries = index_records(&trials_path, false)?;

@@ -128,6 +128,16 @@ pub struct Condition {
     pub t_obs_s: f64,
 }
 
+/// A cell of a campaign with what its trials take from the scenario ([`Scenario::plan`]).
+#[derive(Clone, Debug)]
+pub struct PlannedCell {
+    pub condition: Condition,
+    /// The trial's settings: the scenario's gains, insertion and registration over the defaults.
+    pub config: TrialConfig,
+    /// The robot cell's: the scenario's physics (and its pair's own), sensors, fixture.
+    pub params: CellParams,
+}
+
 impl Condition {
     /// A short label, e.g. `cross 0.5 mm manifold 6 s`.
     pub fn label(&self) -> String {
@@ -384,6 +394,18 @@ impl Scenario {
             ))),
             None => Ok(()),
         }
+    }
+
+    /// The campaign's plan: its cells in their fixed order ([`Scenario::cells`]), each with the
+    /// settings and parameters its trials run at, resolved once.
+    pub fn plan(&self) -> Vec<PlannedCell> {
+        (self.cells().into_iter())
+            .map(|condition| PlannedCell {
+                config: self.trial_config(&condition),
+                params: self.cell_params_for(&condition),
+                condition,
+            })
+            .collect()
     }
 
     /// The cells in their fixed order: geometry, clearance (each built-in at every clearance,
