@@ -5,7 +5,7 @@
 //! less time (`method::observe::observation_motion`): the trials of a seed are one simulation
 //! until each one's observation ends, and differ only in when it ends and in what follows
 //! (registration, insertion). A campaign runs the longest observation once; each trial goes on
-//! from a fork of the cell taken at its own budget (`method::trial::Observing`), and each record
+//! from a fork of the cell taken at its own budget (`method::trial::ObservingTrial`), and each record
 //! is the one its trial gives alone, bit for bit.
 
 use crate::campaign::records::TrialSpec;

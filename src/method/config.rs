@@ -176,7 +176,7 @@ impl TrialConfig {
     /// (the method, the observations kept, registration, retract, alignment, insertion, the
     /// success threshold). A field added to `TrialConfig` counts as part of the observation
     /// until it is listed here. Such trials share one observation in a campaign
-    /// (`campaign::sharing`, `method::trial::Observing`).
+    /// (`campaign::sharing`, `method::trial::ObservingTrial`).
     pub fn observes_like(&self, other: &TrialConfig) -> bool {
         let later = TrialConfig {
             method: self.method,
@@ -203,7 +203,7 @@ impl TrialConfig {
     /// `t_obs`, which only says when the observation's motion stops
     /// ([`crate::method::observe::observation_motion`]). A campaign runs the longer
     /// observation once and the shorter trial goes on from its budget
-    /// (`method::trial::Observing`).
+    /// (`method::trial::ObservingTrial`).
     pub fn observes_like_but_for_budget(&self, other: &TrialConfig) -> bool {
         let same_budget = TrialConfig {
             t_obs_s: other.t_obs_s,

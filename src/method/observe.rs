@@ -60,7 +60,7 @@ pub fn observation_motion(config: &TrialConfig) -> SamplingMotion {
 /// go on to the next. What it holds at each is what an observation of that budget alone records,
 /// bit for bit (the motion does not depend on the budget, [`observation_motion`]). It stops
 /// early only if the physics faults (the session keeps the fault).
-pub struct Observer {
+pub struct ObservationPhase {
     believed: Iso,
     motion: SamplingMotion,
     schedule: ScaleSchedule,
@@ -74,7 +74,7 @@ pub struct Observer {
     stopped: bool,
 }
 
-impl Observer {
+impl ObservationPhase {
     /// Starts observing now, in the session's observation phase.
     pub fn start(
         session: &mut Session,
@@ -82,11 +82,11 @@ impl Observer {
         config: &TrialConfig,
         clearance_m: f64,
         perturbation_seed: u64,
-    ) -> Observer {
+    ) -> ObservationPhase {
         session.set_phase(Phase::Observe);
         let motion = observation_motion(config);
         let noise = PerturbationState::new(motion.perturbation.clone(), perturbation_seed);
-        Observer {
+        ObservationPhase {
             believed: *believed,
             schedule: ScaleSchedule {
                 before: config.phase1_scale,

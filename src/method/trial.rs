@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::insert::{InsertEnd, Insertion, insert};
 use crate::method::manifold::Manifold;
-use crate::method::observe::{Observation, Observer};
+use crate::method::observe::{Observation, ObservationPhase};
 use crate::method::register::{RegistrationConfig, register};
 use crate::method::search::{search, start_pose};
 use crate::method::seeds::TrialSeeds;
@@ -51,9 +51,9 @@ pub fn run_trial(
 /// A trial up to the end of its observation (Fig. 3 "observe"): the cell as the observation
 /// left it, and what registration and insertion start from. Trials that differ only in their
 /// budget and after their observation ([`TrialConfig::observes_like_but_for_budget`]; same
-/// seed, pair, robot and cell) run it once and each goes on from [`Observing::observed`] at its
+/// seed, pair, robot and cell) run it once and each goes on from [`ObservingTrial::observed`] at its
 /// budget: a campaign's direct baseline and its manifold trials at every `t_obs` share it.
-pub struct Observed {
+pub struct ObservedTrial {
     config: TrialConfig,
     setup: Setup,
     cell: Cell,
@@ -76,9 +76,9 @@ pub fn observe_trial(
     config: &TrialConfig,
     seed: u64,
     mut recorder: Option<&mut dyn Recorder>,
-) -> Result<Observed> {
+) -> Result<ObservedTrial> {
     let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
-    let mut observing = Observing::start(pair, robot, params, config, seed, looking)?;
+    let mut observing = ObservingTrial::start(pair, robot, params, config, seed, looking)?;
     observing.observe_until(config.t_obs_s, recorder);
     Ok(observing.into_observed())
 }
@@ -86,19 +86,19 @@ pub fn observe_trial(
 /// A trial between its approach and the end of its observation, which can stop at several
 /// budgets: the trials of a `t_obs` sweep that observe alike but for their budget
 /// ([`TrialConfig::observes_like_but_for_budget`]) run the longest observation once, and each
-/// goes on from its own budget ([`Observing::observed`]) as it would alone, bit for bit.
-pub struct Observing {
+/// goes on from its own budget ([`ObservingTrial::observed`]) as it would alone, bit for bit.
+pub struct ObservingTrial {
     /// The trial so far, under the configuration it started under (the longest budget); its
-    /// observation is read from `observer` when it is handed on.
-    trial: Observed,
+    /// observation is read from `observation_phase` when it is handed on.
+    trial: ObservedTrial,
     /// `None` when the trial stopped before observing.
-    observer: Option<Observer>,
+    observation_phase: Option<ObservationPhase>,
     /// The budget observed to so far, s.
     budget_s: f64,
     started: Instant,
 }
 
-impl Observing {
+impl ObservingTrial {
     /// Sets the trial up (the hole offset, the cell) and approaches (or searches for) the hole;
     /// the observation starts then, under `config` (the longest budget of those asked for).
     pub fn start(
@@ -108,7 +108,7 @@ impl Observing {
         config: &TrialConfig,
         seed: u64,
         recorder: Option<&mut dyn Recorder>,
-    ) -> Result<Observing> {
+    ) -> Result<ObservingTrial> {
         config.ensure_valid()?;
         let started = Instant::now();
         let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
@@ -118,9 +118,9 @@ impl Observing {
         let mut session = Session::new(&mut cell, recorder, Phase::Search);
         let believed = setup.approach(&mut session, config, pair.clearance_m);
         let search_s = session.time_s();
-        let observer = believed.as_ref().map(|believed| {
+        let observation_phase = believed.as_ref().map(|believed| {
             let perturbation = setup.seeds.perturbation();
-            Observer::start(
+            ObservationPhase::start(
                 &mut session,
                 believed,
                 config,
@@ -129,7 +129,7 @@ impl Observing {
             )
         });
         let fault = session.fault().cloned();
-        let trial = Observed {
+        let trial = ObservedTrial {
             config: config.clone(),
             setup,
             cell,
@@ -139,9 +139,9 @@ impl Observing {
             observation: Observation::default(),
             wall_s: 0.0,
         };
-        Ok(Observing {
+        Ok(ObservingTrial {
             trial,
-            observer,
+            observation_phase,
             budget_s: 0.0,
             started,
         })
@@ -152,21 +152,21 @@ impl Observing {
     pub fn observe_until(&mut self, t_obs_s: f64, recorder: Option<&mut dyn Recorder>) {
         let trial = &mut self.trial;
         self.budget_s = t_obs_s.min(trial.config.t_obs_s);
-        let Some(observer) = &mut self.observer else {
+        let Some(observation_phase) = &mut self.observation_phase else {
             return;
         };
         let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
         let fault = trial.fault.take();
         let mut session = Session::resume(&mut trial.cell, recorder, fault, Phase::Observe);
-        observer.run_to(&mut session, self.budget_s);
+        observation_phase.run_to(&mut session, self.budget_s);
         trial.fault = session.fault().cloned();
     }
 
     /// The trial as it stands, for a trial whose budget ends here: a fork of the cell
     /// ([`Cell::fork`]) with the observation so far, under the configuration with this budget.
-    pub fn observed(&self) -> Observed {
+    pub fn observed(&self) -> ObservedTrial {
         let trial = &self.trial;
-        Observed {
+        ObservedTrial {
             config: TrialConfig {
                 t_obs_s: self.budget_s,
                 ..trial.config.clone()
@@ -182,10 +182,10 @@ impl Observing {
     }
 
     /// The trial at the end of its observation.
-    pub fn into_observed(self) -> Observed {
+    pub fn into_observed(self) -> ObservedTrial {
         let observation = self.observation();
         let wall_s = self.started.elapsed().as_secs_f64();
-        Observed {
+        ObservedTrial {
             observation,
             wall_s,
             ..self.trial
@@ -194,14 +194,15 @@ impl Observing {
 
     fn observation(&self) -> Observation {
         let now_s = self.trial.cell.time_s();
-        (self.observer.as_ref()).map_or_else(Observation::default, |o| o.observation(now_s))
+        (self.observation_phase.as_ref())
+            .map_or_else(Observation::default, |o| o.observation(now_s))
     }
 }
 
 /// The last stages of a trial under `config` (which must observe like the one `observed` ran
 /// under): registration for the manifold method (Algorithm 1), insertion, and the score.
 pub fn finish_trial(
-    observed: Observed,
+    observed: ObservedTrial,
     pair: &PartPair,
     config: &TrialConfig,
     manifold: Option<&Manifold>,
@@ -214,7 +215,7 @@ pub fn finish_trial(
         ));
     }
     let started = Instant::now();
-    let Observed {
+    let ObservedTrial {
         setup,
         mut cell,
         fault,

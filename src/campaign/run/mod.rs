@@ -33,7 +33,7 @@ use crate::method::manifold::Manifold;
 use crate::method::manifold::cache::{self, BuildProgress, Wanted};
 use crate::method::seeds;
 use crate::method::session::Recorder;
-use crate::method::trial::{Observing, TrialResult, errored_trial, finish_trial, run_trial};
+use crate::method::trial::{ObservingTrial, TrialResult, errored_trial, finish_trial, run_trial};
 use crate::replay::Replay;
 use crate::schedule;
 use crate::twin::geometry::PartPair;
@@ -368,7 +368,7 @@ fn run_shared(
         .then(|| Replay::new(pair, robot));
     let mut observing = guarded(|| {
         let recorder = watched.as_mut().map(|r| r as &mut dyn Recorder);
-        Observing::start(pair, robot, params, config, longest.seed, recorder)
+        ObservingTrial::start(pair, robot, params, config, longest.seed, recorder)
     });
     for (i, spec) in trials.iter().enumerate() {
         if i > 0 {
