@@ -8,7 +8,7 @@ use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::{SamplerConfig, build, run_episode};
 use pegtwin::method::seeds;
 use pegtwin::method::trial::run_trial;
-use pegtwin::twin::cell::CellParams;
+use pegtwin::twin::workcell::WorkCellParams;
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
@@ -18,7 +18,7 @@ fn bench(c: &mut Criterion) {
     )
     .unwrap();
     let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let sampler = SamplerConfig::default();
     let manifold = build(&pair, &robot, &params, &sampler, 50_000, 1, &|| ())
         .unwrap()

@@ -8,7 +8,7 @@
 //!   its URDF loader ([`twin::robot`]), the rapier world with exact convex contacts
 //!   ([`twin::physics`]), Sunrise-style impedance control ([`twin::control`]), joint-torque
 //!   sensing and the wrench estimate ([`twin::sensing`]), and the cell that steps them together
-//!   behind the real robot's ports ([`twin::cell`]); the physics self-checks
+//!   behind the real robot's ports ([`twin::workcell`]); the physics self-checks
 //!   ([`twin::validate`], [`twin::diagnostics`]).
 //! - [`method`]: the paper's method, one file per stage of its Fig. 3.
 //!   - sample the manifold: [`method::primitives`] (the motions) driving

@@ -2,7 +2,6 @@
 //! physics' contact force, insertion at 0.1 mm clearance, stalling when misaligned, mode switches.
 
 use pegtwin::selfcheck::stiffness::{PushTest, measure_stiffness};
-use pegtwin::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use pegtwin::twin::control::{ImpedanceGains, JointPositionGains, Mode};
 use pegtwin::twin::energy::EnergySource;
 use pegtwin::twin::geometry::{PartPair, build_builtin, builtin_by_name};
@@ -10,15 +9,16 @@ use pegtwin::twin::physics::ArmContacts;
 use pegtwin::twin::physics::penetration::PenetrationProbe;
 use pegtwin::twin::robot::Iso;
 use pegtwin::twin::robot::urdf::iiwa14;
+use pegtwin::twin::workcell::{WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
 
 /// The cell in free space (no fixture), the arm at rest at `start` under `gains`.
 fn free_cell(
     pair: &PartPair,
-    params: &CellParams,
+    params: &WorkCellParams,
     start: &Iso,
     gains: ImpedanceGains,
-) -> Result<Cell, pegtwin::error::Error> {
-    Cell::new(pair, iiwa14().unwrap(), params, None, start, gains, 1)
+) -> Result<WorkCell, pegtwin::error::Error> {
+    WorkCell::new(pair, iiwa14().unwrap(), params, None, start, gains, 1)
 }
 
 fn cross(clearance_m: f64) -> PartPair {
@@ -36,7 +36,7 @@ fn static_stiffness_is_within_5_percent_at_sunrise_defaults_and_maxima() {
         let axes = measure_stiffness(
             &pair,
             &robot,
-            &CellParams::default(),
+            &WorkCellParams::default(),
             &gains,
             PushTest::default(),
         )
@@ -55,9 +55,14 @@ fn static_stiffness_is_within_5_percent_at_sunrise_defaults_and_maxima() {
 
 /// Lowers the peg from `start` by `travel_m` along the hole axis over 2 s, holds 2 s more;
 /// returns the cell and the largest exact penetration seen (sampled every 5 ms).
-fn press_down(pair: &PartPair, start: Iso, travel_m: f64, params: &CellParams) -> (Cell, f64) {
+fn press_down(
+    pair: &PartPair,
+    start: Iso,
+    travel_m: f64,
+    params: &WorkCellParams,
+) -> (WorkCell, f64) {
     let hole = nominal_hole_pose(pair, params);
-    let mut cell = Cell::new(
+    let mut cell = WorkCell::new(
         pair,
         iiwa14().unwrap(),
         params,
@@ -82,13 +87,13 @@ fn press_down(pair: &PartPair, start: Iso, travel_m: f64, params: &CellParams) -
 
 /// The cross at 0.1 mm lowered 1 mm off its axis, so that its arms land on the rim and are
 /// pressed 10 mm further down (`press_down`).
-fn press_on_rim(pair: &PartPair, params: &CellParams) -> (Cell, f64) {
+fn press_on_rim(pair: &PartPair, params: &WorkCellParams) -> (WorkCell, f64) {
     let hole = nominal_hole_pose(pair, params);
     let start = tcp_in_hole(&hole, -0.001) * Iso::translation(0.001, 0.0, 0.0);
     press_down(pair, start, 0.01, params)
 }
 
-fn depth_m(cell: &Cell) -> f64 {
+fn depth_m(cell: &WorkCell) -> f64 {
     -(cell.truth().base_t_hole().unwrap().inverse() * cell.truth().tcp_pose())
         .translation
         .z
@@ -97,7 +102,7 @@ fn depth_m(cell: &Cell) -> f64 {
 #[test]
 fn aligned_cross_goes_from_2_mm_to_full_depth_at_0_1_mm_and_the_press_is_estimated_within_1_n() {
     let pair = cross(0.1e-3);
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let hole = nominal_hole_pose(&pair, &params);
     let start = tcp_in_hole(&hole, 0.002);
     let (cell, worst) = press_down(&pair, start, pair.cavity_depth_m + 0.003, &params);
@@ -124,7 +129,7 @@ fn aligned_cross_goes_from_2_mm_to_full_depth_at_0_1_mm_and_the_press_is_estimat
 #[test]
 fn misaligned_cross_stalls_on_the_mouth() {
     let pair = cross(0.1e-3);
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let (cell, worst) = press_on_rim(&pair, &params);
     assert!(depth_m(&cell) < 0.1e-3, "depth {}", depth_m(&cell));
     assert!(worst <= 5e-6, "penetration {worst} m");
@@ -135,7 +140,7 @@ fn misaligned_cross_stalls_on_the_mouth() {
 #[test]
 fn contacts_take_energy_out_of_the_arm_and_the_account_closes_while_pressing_the_rim() {
     let pair = cross(0.1e-3);
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let (cell, _) = press_on_rim(&pair, &params);
     let f = cell.energy_flows();
     assert!(cell.truth().contact_wrench().z > 10.0, "pressing the rim");
@@ -149,7 +154,7 @@ fn contacts_take_energy_out_of_the_arm_and_the_account_closes_while_pressing_the
 #[test]
 fn a_commanded_twist_is_paid_for_by_the_drives_and_the_account_closes() {
     let pair = cross(0.5e-3);
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.05);
     let gains = ImpedanceGains::uniform(2000.0, 300.0, 0.7);
     let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
@@ -175,7 +180,7 @@ fn a_commanded_twist_is_paid_for_by_the_drives_and_the_account_closes() {
 #[test]
 fn switching_to_joint_position_mode_holds_the_pose_without_a_torque_jump() {
     let pair = cross(0.5e-3);
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let hole = nominal_hole_pose(&pair, &params);
     let start = tcp_in_hole(&hole, -0.05);
     let mut cell = free_cell(&pair, &params, &start, ImpedanceGains::default()).unwrap();
@@ -213,7 +218,7 @@ fn switching_to_joint_position_mode_holds_the_pose_without_a_torque_jump() {
 #[test]
 fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
     let pair = cross(0.5e-3);
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
     // 10 N feed-forward along TCP z against 2000 N/m: the TCP moves 5 mm along its z.
     let gains = ImpedanceGains {
@@ -252,7 +257,7 @@ fn feed_forward_wrench_and_max_control_force_act_as_in_sunrise() {
 #[test]
 fn control_rate_is_independent_of_the_physics_step() {
     let pair = cross(0.5e-3);
-    let mut params = CellParams::default();
+    let mut params = WorkCellParams::default();
     params.controller.rate_hz = 500.0;
     let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
     let mut cell = free_cell(&pair, &params, &start, ImpedanceGains::default()).unwrap();
@@ -271,7 +276,7 @@ fn control_rate_is_independent_of_the_physics_step() {
 #[test]
 fn a_drive_asked_for_more_than_its_torque_limit_is_named_until_100_ms_after() {
     let pair = cross(0.5e-3);
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.05);
     let gains = ImpedanceGains::uniform(2000.0, 300.0, 0.7);
     let mut cell = free_cell(&pair, &params, &start, gains).unwrap();
@@ -294,7 +299,7 @@ fn a_drive_asked_for_more_than_its_torque_limit_is_named_until_100_ms_after() {
 #[test]
 fn joint_space_contacts_carry_the_rim_press_with_an_estimate_within_1_n_and_a_closed_account() {
     let pair = cross(0.1e-3);
-    let mut params = CellParams::default();
+    let mut params = WorkCellParams::default();
     params.physics.arm_contacts = ArmContacts::JointSpace;
     let (cell, worst) = press_on_rim(&pair, &params);
     assert!(depth_m(&cell) < 0.1e-3, "depth {}", depth_m(&cell));
@@ -323,7 +328,7 @@ fn the_energy_account_opens_with_the_arms_energy_so_an_early_fault_is_not_booked
     // account used to open at 0 J (rapier's bodies weigh nothing until its first step) and then
     // booked the links' 74 J of potential energy to the integrator for the first 100 ms.
     let pair = cross(0.5e-3);
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     let start = nominal_hole_pose(&pair, &params) * Iso::translation(0.0, 0.0, 0.05);
     let mut cell = free_cell(&pair, &params, &start, ImpedanceGains::default()).unwrap();
     cell.run(0.01);

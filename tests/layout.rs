@@ -237,12 +237,12 @@ fn a_circle_made_only_of_inline_paths_is_found() {
     assert!(cycle.contains(&"twin::geometry::stack".to_string()));
     // Through `crate::` and two levels of `super::` as well; and gone once one side is cut.
     sources.push(module(
-        "twin::cell",
+        "twin::workcell",
         "fn g() { super::super::twin::geometry::mesh::f(); }",
     ));
-    sources[1].1 = "fn f() -> crate::twin::cell::Cell { todo!() }".into();
+    sources[1].1 = "fn f() -> crate::twin::workcell::WorkCell { todo!() }".into();
     let cycle = find_cycle(&graph_of(&sources)).expect("the longer circle is found");
-    assert!(cycle.contains(&"twin::cell".to_string()), "{cycle:?}");
+    assert!(cycle.contains(&"twin::workcell".to_string()), "{cycle:?}");
     sources[1].1 = "fn f() {}".into();
     assert_eq!(find_cycle(&graph_of(&sources)), None);
 }

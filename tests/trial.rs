@@ -7,7 +7,7 @@ use common::{pegtwin, stderr};
 use pegtwin::method::config::{Method, TrialConfig};
 use pegtwin::method::manifold::build::{SamplerConfig, build};
 use pegtwin::method::trial::run_trial;
-use pegtwin::twin::cell::CellParams;
+use pegtwin::twin::workcell::WorkCellParams;
 use std::path::{Path, PathBuf};
 
 fn cross(clearance_m: f64) -> pegtwin::twin::geometry::PartPair {
@@ -21,7 +21,7 @@ fn cross(clearance_m: f64) -> pegtwin::twin::geometry::PartPair {
 /// A trial without a manifold on the cross at 0.5 mm, held by the iiwa 14.
 fn cross_trial(config: &TrialConfig, seed: u64) -> pegtwin::method::trial::TrialResult {
     let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
-    let params = CellParams::default();
+    let params = WorkCellParams::default();
     run_trial(&cross(0.5e-3), &robot, &params, config, None, seed, None).unwrap()
 }
 
@@ -36,7 +36,7 @@ fn small_manifold(dir: &Path, clearance_m: f64) -> PathBuf {
     let report = build(
         &cross(clearance_m),
         &robot,
-        &CellParams::default(),
+        &WorkCellParams::default(),
         &config,
         3000,
         1,
@@ -107,7 +107,7 @@ fn the_same_seed_gives_an_identical_json_result_whatever_the_threads() {
 fn a_physics_blow_up_ends_as_a_recorded_sim_fault() {
     // rapier's contacts softened to 2 Hz let the peg sink through the wall: the fault check
     // catches it. (The joint-space contacts, the default, have no such setting.)
-    let mut params = CellParams::default();
+    let mut params = WorkCellParams::default();
     params.physics.arm_contacts = pegtwin::twin::physics::ArmContacts::Rapier;
     params.physics.contact_frequency_hz = 2.0;
     let config = TrialConfig {

@@ -4,10 +4,10 @@
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::SamplerConfig;
 use pegtwin::selfcheck::arm::{ArmValidationReport, validate_arm};
-use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::geometry::{build_builtin, builtin_by_name};
 use pegtwin::twin::physics::ArmContacts;
 use pegtwin::twin::robot::urdf::iiwa14;
+use pegtwin::twin::workcell::WorkCellParams;
 
 #[test]
 fn the_cross_at_1_mm_passes_every_arm_case() {
@@ -15,7 +15,7 @@ fn the_cross_at_1_mm_passes_every_arm_case() {
     let report = validate_arm(
         &pair,
         &iiwa14().unwrap(),
-        &CellParams::default(),
+        &WorkCellParams::default(),
         &TrialConfig::default(),
         &SamplerConfig::default(),
     )
@@ -58,7 +58,7 @@ fn the_cross_at_1_mm_passes_every_arm_case() {
 }
 
 /// `validate --arm` on the cross at 0.1 mm with `params`, every case passed within 5 um.
-fn cross_at_0_1_mm_within_5_um(params: &CellParams) -> ArmValidationReport {
+fn cross_at_0_1_mm_within_5_um(params: &WorkCellParams) -> ArmValidationReport {
     let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.1e-3).unwrap();
     let report = validate_arm(
         &pair,
@@ -84,7 +84,7 @@ fn cross_at_0_1_mm_within_5_um(params: &CellParams) -> ArmValidationReport {
 fn with_position_projection_the_cross_at_0_1_mm_passes_every_arm_case_within_5_um() {
     // On rapier's contacts; without it their probing and sampling cases keep 15 and 39 um
     // (docs/physics.md).
-    let mut params = CellParams::default();
+    let mut params = WorkCellParams::default();
     params.physics.arm_contacts = ArmContacts::Rapier;
     params.physics.position_projection = true;
     let report = cross_at_0_1_mm_within_5_um(&params);
@@ -95,7 +95,7 @@ fn with_position_projection_the_cross_at_0_1_mm_passes_every_arm_case_within_5_u
 fn the_cross_at_0_1_mm_passes_every_arm_case_within_5_um_on_the_joint_space_contacts() {
     // The default; with rapier's contacts the probing and sampling cases keep 15 and 39 um
     // (docs/journal/2026-11-25.md, "Joint-space contacts").
-    let report = cross_at_0_1_mm_within_5_um(&CellParams::default());
+    let report = cross_at_0_1_mm_within_5_um(&WorkCellParams::default());
     for c in &report.cases[..6] {
         assert!(c.verdict.max_penetration_mm <= 0.001, "{c:?}");
     }

@@ -346,7 +346,7 @@ impl Env {
                 let (pair, _) = request.check()?;
                 let spec = request.pair.robot()?;
                 let (robot, _) = spec.load()?;
-                let params = pegtwin::twin::cell::CellParams::default().placed_for(&spec);
+                let params = pegtwin::twin::workcell::WorkCellParams::default().placed_for(&spec);
                 PegEnv::new(pair, robot, params, config)
             })
             .map_err(py_err)?;

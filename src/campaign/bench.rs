@@ -36,11 +36,11 @@ use crate::method::register::{RegistrationConfig, register};
 use crate::method::seeds;
 use crate::method::trial::run_trial;
 use crate::pose::{Iso, Pose6, PoseMetric};
-use crate::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use crate::twin::control::ImpedanceGains;
 use crate::twin::geometry::{PartPair, build_builtin, builtin_by_name};
 use crate::twin::physics::ArmContacts;
 use crate::twin::robot::urdf::iiwa14;
+use crate::twin::workcell::{WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -95,26 +95,26 @@ pub fn probing_target(start: &Iso, t_s: f64) -> Iso {
 
 /// The arm scene of `geometry` at 0.1 mm: the cell with the peg 5 mm in its hole under 500 N/m,
 /// settled for [`SETTLE_STEPS`] steps of probing, and the start pose the probing is about.
-pub fn arm_scene(geometry: &str, contacts: ArmContacts) -> Result<(Cell, Iso)> {
+pub fn arm_scene(geometry: &str, contacts: ArmContacts) -> Result<(WorkCell, Iso)> {
     arm_scene_of(
         &build_builtin(builtin_by_name(geometry)?, 0.1e-3)?,
         contacts,
     )
 }
 
-fn arm_scene_of(pair: &PartPair, contacts: ArmContacts) -> Result<(Cell, Iso)> {
-    let mut params = CellParams::default();
+fn arm_scene_of(pair: &PartPair, contacts: ArmContacts) -> Result<(WorkCell, Iso)> {
+    let mut params = WorkCellParams::default();
     params.physics.arm_contacts = contacts;
     let hole = nominal_hole_pose(pair, &params);
     let start = tcp_in_hole(&hole, 0.005);
     let gains = ImpedanceGains::uniform(500.0, 20.0, 0.7);
-    let mut cell = Cell::new(pair, iiwa14()?, &params, Some(hole), &start, gains, 1)?;
+    let mut cell = WorkCell::new(pair, iiwa14()?, &params, Some(hole), &start, gains, 1)?;
     probe(&mut cell, &start, SETTLE_STEPS);
     Ok((cell, start))
 }
 
 /// `steps` physics steps of probing.
-pub fn probe(cell: &mut Cell, start: &Iso, steps: usize) {
+pub fn probe(cell: &mut WorkCell, start: &Iso, steps: usize) {
     for _ in 0..steps {
         let t = cell.time_s();
         cell.command_pose(probing_target(start, t));
@@ -124,7 +124,7 @@ pub fn probe(cell: &mut Cell, start: &Iso, steps: usize) {
 
 /// The mean number of contact points the solver handles per step over `steps` more steps of
 /// probing (counted apart from the timed steps).
-fn contacts_per_step(cell: &mut Cell, start: &Iso, steps: usize) -> f64 {
+fn contacts_per_step(cell: &mut WorkCell, start: &Iso, steps: usize) -> f64 {
     let mut contacts = 0;
     for _ in 0..steps {
         probe(cell, start, 1);
@@ -183,7 +183,7 @@ fn episode_row() -> Result<BenchRow> {
     run_episode(
         &pair,
         &iiwa14()?,
-        &CellParams::default(),
+        &WorkCellParams::default(),
         &sampler,
         seeds::episode(1, 0),
     )?;
@@ -210,7 +210,7 @@ fn trial_row() -> Result<BenchRow> {
     let r = run_trial(
         &pair,
         &iiwa14()?,
-        &CellParams::default(),
+        &WorkCellParams::default(),
         &config,
         None,
         3,
@@ -237,7 +237,7 @@ fn env_row(steps: usize) -> Result<BenchRow> {
     let pair = build_builtin(builtin_by_name("cross")?, 0.5e-3)?;
     let config = EnvConfig::default();
     let control_hz = config.control_hz;
-    let mut env = PegEnv::new(pair, iiwa14()?, CellParams::default(), config)?;
+    let mut env = PegEnv::new(pair, iiwa14()?, WorkCellParams::default(), config)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let t0 = Instant::now();
     env.reset(0)?;

@@ -266,8 +266,8 @@ mod tests {
     use super::*;
     use crate::method::config::TrialConfig;
     use crate::method::trial::errored_trial;
-    use crate::twin::cell::CellParams;
     use crate::twin::geometry::{build_builtin, builtin_by_name};
+    use crate::twin::workcell::WorkCellParams;
 
     #[test]
     fn failures_replays_the_first_trials_and_the_early_failures() {
@@ -275,7 +275,7 @@ mod tests {
         let record = |success: bool| {
             let mut r = errored_trial(
                 &pair,
-                &CellParams::default(),
+                &WorkCellParams::default(),
                 &TrialConfig::default(),
                 1,
                 String::new(),

@@ -6,11 +6,11 @@ use clap::{Args, Parser, Subcommand};
 use pegtwin::choice::Choice;
 use pegtwin::error::{Error, Result};
 use pegtwin::twin::assembly::PairSource;
-use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::geometry::mesh::{MeshUnits, load_pair};
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
 use pegtwin::twin::robot::RobotModel;
 use pegtwin::twin::robot::spec::RobotSpec;
+use pegtwin::twin::workcell::WorkCellParams;
 use std::path::PathBuf;
 
 mod assembly;
@@ -191,12 +191,12 @@ pub struct ValidateArgs {
 impl PairArgs {
     /// The robot that holds the peg (the assembly's, else the built-in iiwa 14) and the cell
     /// it stands in.
-    pub fn robot(&self) -> Result<(RobotModel, CellParams)> {
+    pub fn robot(&self) -> Result<(RobotModel, WorkCellParams)> {
         let spec = match &self.assembly {
             Some(path) => PairSource::Assembly(path.clone()).robot()?,
             None => RobotSpec::default(),
         };
-        Ok((spec.load()?.0, CellParams::default().placed_for(&spec)))
+        Ok((spec.load()?.0, WorkCellParams::default().placed_for(&spec)))
     }
 
     /// Builds the pair, printing mesh warnings to stderr.

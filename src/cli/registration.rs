@@ -333,7 +333,7 @@ fn build(args: BuildArgs) -> Result<()> {
     let report = pegtwin::method::manifold::build::build(
         &pair,
         &robot,
-        &pegtwin::twin::cell::CellParams::default().placed_for(&spec),
+        &pegtwin::twin::workcell::WorkCellParams::default().placed_for(&spec),
         &config,
         args.points,
         args.seed,

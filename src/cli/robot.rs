@@ -3,12 +3,12 @@
 use clap::{Args, Subcommand};
 use pegtwin::error::{Error, Result};
 use pegtwin::selfcheck::stiffness::{AxisStiffness, PushTest, measure_stiffness};
-use pegtwin::twin::cell::CellParams;
 use pegtwin::twin::control::ImpedanceGains;
 use pegtwin::twin::geometry::{self, build_builtin, builtin_by_name};
 use pegtwin::twin::robot::spec::RobotSpec;
 use pegtwin::twin::robot::urdf::{iiwa14, load};
 use pegtwin::twin::robot::{GRAVITY_UPRIGHT, RobotModel};
+use pegtwin::twin::workcell::WorkCellParams;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -274,7 +274,7 @@ fn stiffness_command(args: &StiffnessArgs) -> Result<i32> {
         torque_nm: args.torque_nm,
         ..Default::default()
     };
-    let axes = measure_stiffness(&pair, &model, &CellParams::default(), &gains, test)?;
+    let axes = measure_stiffness(&pair, &model, &WorkCellParams::default(), &gains, test)?;
     let passed = axes
         .iter()
         .all(|a| a.error_percent.abs() <= STIFFNESS_TOLERANCE_PERCENT);

@@ -15,13 +15,13 @@ use crate::method::config::{Start, TrialConfig};
 use crate::method::seeds::TrialSeeds;
 use crate::method::trial::Setup;
 use crate::pose::{Iso, Pose6};
-use crate::twin::cell::{Cell, CellParams, SimFault};
 use crate::twin::control::{
     ImpedanceGains, ROTATIONAL_STIFFNESS_RANGE, TRANSLATIONAL_STIFFNESS_RANGE,
 };
 use crate::twin::geometry::PartPair;
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::robot::RobotModel;
+use crate::twin::workcell::{SimFault, WorkCell, WorkCellParams};
 use nalgebra::{Translation3, UnitQuaternion};
 
 /// Length of an observation: TCP pose `[x, y, z, roll, pitch, yaw]` in the nominal hole frame
@@ -87,7 +87,7 @@ impl EnvConfig {
     }
 
     /// Checks every value, naming the one at fault.
-    pub fn ensure_valid(&self, params: &CellParams) -> Result<()> {
+    pub fn ensure_valid(&self, params: &WorkCellParams) -> Result<()> {
         let checks = [
             ("control_hz", self.control_hz, 1.0, 100.0),
             ("episode_s", self.episode_s, 0.01, 600.0),
@@ -153,7 +153,7 @@ pub struct Step {
 
 /// An episode under way.
 struct Episode {
-    cell: Cell,
+    cell: WorkCell,
     nominal: Iso,
     truth: Iso,
     offset: Pose6,
@@ -170,7 +170,7 @@ struct Episode {
 pub struct PegEnv {
     pair: PartPair,
     robot: RobotModel,
-    params: CellParams,
+    params: WorkCellParams,
     config: EnvConfig,
     trial: TrialConfig,
     episode: Option<Episode>,
@@ -181,7 +181,7 @@ impl PegEnv {
     pub fn new(
         pair: PartPair,
         robot: RobotModel,
-        params: CellParams,
+        params: WorkCellParams,
         config: EnvConfig,
     ) -> Result<Self> {
         config.ensure_valid(&params)?;
@@ -376,7 +376,7 @@ mod tests {
 
     fn env(config: EnvConfig) -> Result<PegEnv> {
         let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
-        PegEnv::new(pair, iiwa14().unwrap(), CellParams::default(), config)
+        PegEnv::new(pair, iiwa14().unwrap(), WorkCellParams::default(), config)
     }
 
     #[test]

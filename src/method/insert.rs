@@ -15,7 +15,7 @@ use crate::error::Result;
 use crate::method::config::TrialConfig;
 use crate::method::session::{Phase, Session};
 use crate::pose::{Iso, Pose6};
-use crate::twin::cell::tcp_in_hole;
+use crate::twin::workcell::tcp_in_hole;
 use serde::{Deserialize, Serialize};
 
 /// Time the insertion target rests at its end before the trial is scored, s.

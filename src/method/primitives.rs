@@ -11,7 +11,7 @@
 
 use crate::method::session::Session;
 use crate::pose::{Iso, Pose6};
-use crate::twin::cell::Measurements;
+use crate::twin::workcell::Measurements;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};

@@ -11,9 +11,9 @@ use crate::method::manifold::file;
 use crate::method::session::Recorder;
 use crate::method::trial::{TrialResult, run_trial};
 use crate::twin::assembly::PairSource;
-use crate::twin::cell::CellParams;
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
+use crate::twin::workcell::WorkCellParams;
 use std::path::PathBuf;
 
 /// A trial's arguments as typed (mm, deg, names).
@@ -97,7 +97,7 @@ impl TrialRequest {
     ) -> Result<PreparedTrial> {
         let spec = self.pair.robot()?;
         let (robot, _warnings) = spec.load()?;
-        let params = CellParams::default().placed_for(&spec);
+        let params = WorkCellParams::default().placed_for(&spec);
         let manifold = match self.method {
             Method::Manifold => Some(self.reference_manifold(&pair, &robot, &params, progress)?),
             Method::Direct => None,
@@ -122,7 +122,7 @@ impl TrialRequest {
         &self,
         pair: &PartPair,
         robot: &RobotModel,
-        params: &CellParams,
+        params: &WorkCellParams,
         progress: &dyn BuildProgress,
     ) -> Result<Manifold> {
         let Some(path) = &self.manifold else {
@@ -159,7 +159,7 @@ impl TrialRequest {
 pub struct PreparedTrial {
     pub pair: PartPair,
     pub robot: RobotModel,
-    pub params: CellParams,
+    pub params: WorkCellParams,
     pub config: TrialConfig,
     pub manifold: Option<Manifold>,
     pub seed: u64,

@@ -8,7 +8,7 @@ use crate::method::config::TrialConfig;
 use crate::method::primitives::Spiral;
 use crate::method::session::{Phase, Session};
 use crate::pose::Iso;
-use crate::twin::cell::tcp_in_hole;
+use crate::twin::workcell::tcp_in_hole;
 
 /// Where a search starts: above the nominal mouth, clear of the highest hole the offsets allow.
 pub fn start_pose(nominal: &Iso, config: &TrialConfig) -> Iso {

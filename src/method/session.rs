@@ -9,8 +9,8 @@
 
 use crate::error::Result;
 use crate::pose::{Iso, Pose6};
-use crate::twin::cell::{Cell, Measurements, SimFault};
 use crate::twin::control::ImpedanceGains;
+use crate::twin::workcell::{Measurements, SimFault, WorkCell};
 use serde::Serialize;
 
 /// The phases of a trial (and the manifold sampler's), as the trace names them.
@@ -78,7 +78,7 @@ pub fn trace_csv(rows: &[TraceRow]) -> Vec<u8> {
 /// What looks at the cell after every step of a session: it may read the truth, and it cannot
 /// command anything.
 pub trait Recorder {
-    fn record(&mut self, cell: &Cell, phase: Phase);
+    fn record(&mut self, cell: &WorkCell, phase: Phase);
 
     /// The registration's input and output (IV-D), for a recorder that draws them: the contact
     /// poses used (`base_T_tcp`), the hole frame believed before registering, and the estimated
@@ -94,7 +94,7 @@ pub trait Recorder {
 
 /// Two recorders fed together (a `--trace` and a `--replay` of the same trial).
 impl<A: Recorder, B: Recorder> Recorder for (A, B) {
-    fn record(&mut self, cell: &Cell, phase: Phase) {
+    fn record(&mut self, cell: &WorkCell, phase: Phase) {
         self.0.record(cell, phase);
         self.1.record(cell, phase);
     }
@@ -107,7 +107,7 @@ impl<A: Recorder, B: Recorder> Recorder for (A, B) {
 
 /// The `--trace` time series: one row per step.
 impl Recorder for Vec<TraceRow> {
-    fn record(&mut self, cell: &Cell, phase: Phase) {
+    fn record(&mut self, cell: &WorkCell, phase: Phase) {
         let m = cell.measurements();
         self.push(TraceRow {
             time_s: m.time_s,
@@ -122,21 +122,25 @@ impl Recorder for Vec<TraceRow> {
 
 /// The method's stepping of a cell: faults stop it, the recorder sees each step.
 pub struct Session<'a> {
-    cell: &'a mut Cell,
+    cell: &'a mut WorkCell,
     recorder: Option<&'a mut dyn Recorder>,
     fault: Option<SimFault>,
     phase: Phase,
 }
 
 impl<'a> Session<'a> {
-    pub fn new(cell: &'a mut Cell, recorder: Option<&'a mut dyn Recorder>, phase: Phase) -> Self {
+    pub fn new(
+        cell: &'a mut WorkCell,
+        recorder: Option<&'a mut dyn Recorder>,
+        phase: Phase,
+    ) -> Self {
         Session::resume(cell, recorder, None, phase)
     }
 
     /// A session that goes on from where an earlier one over the same cell stopped: its fault
     /// (if the physics faulted) and its phase.
     pub fn resume(
-        cell: &'a mut Cell,
+        cell: &'a mut WorkCell,
         recorder: Option<&'a mut dyn Recorder>,
         fault: Option<SimFault>,
         phase: Phase,

@@ -21,9 +21,9 @@ use crate::method::search::{search, start_pose};
 use crate::method::seeds::TrialSeeds;
 use crate::method::session::{Phase, Recorder, Session};
 use crate::pose::{Iso, Pose6};
-use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
+use crate::twin::workcell::{SimFault, WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -37,7 +37,7 @@ pub const FZ_PROFILE_DT_S: f64 = 0.05;
 pub fn run_trial(
     pair: &PartPair,
     robot: &RobotModel,
-    params: &CellParams,
+    params: &WorkCellParams,
     config: &TrialConfig,
     manifold: Option<&Manifold>,
     seed: u64,
@@ -56,7 +56,7 @@ pub fn run_trial(
 pub struct ObservedTrial {
     config: TrialConfig,
     setup: Setup,
-    cell: Cell,
+    cell: WorkCell,
     /// The physics fault that stopped the session, if one did.
     fault: Option<SimFault>,
     /// The hole frame the robot believes in; `None`: the search found no hole (or faulted), and
@@ -72,7 +72,7 @@ pub struct ObservedTrial {
 pub fn observe_trial(
     pair: &PartPair,
     robot: &RobotModel,
-    params: &CellParams,
+    params: &WorkCellParams,
     config: &TrialConfig,
     seed: u64,
     mut recorder: Option<&mut dyn Recorder>,
@@ -104,7 +104,7 @@ impl ObservingTrial {
     pub fn start(
         pair: &PartPair,
         robot: &RobotModel,
-        params: &CellParams,
+        params: &WorkCellParams,
         config: &TrialConfig,
         seed: u64,
         recorder: Option<&mut dyn Recorder>,
@@ -163,7 +163,7 @@ impl ObservingTrial {
     }
 
     /// The trial as it stands, for a trial whose budget ends here: a fork of the cell
-    /// ([`Cell::fork`]) with the observation so far, under the configuration with this budget.
+    /// ([`WorkCell::fork`]) with the observation so far, under the configuration with this budget.
     pub fn observed(&self) -> ObservedTrial {
         let trial = &self.trial;
         ObservedTrial {
@@ -339,7 +339,7 @@ pub(crate) struct Setup {
 impl Setup {
     pub(crate) fn draw(
         pair: &PartPair,
-        params: &CellParams,
+        params: &WorkCellParams,
         config: &TrialConfig,
         seeds: TrialSeeds,
     ) -> Self {
@@ -360,16 +360,16 @@ impl Setup {
         &self,
         pair: &PartPair,
         robot: &RobotModel,
-        params: &CellParams,
+        params: &WorkCellParams,
         config: &TrialConfig,
-    ) -> Result<Cell> {
+    ) -> Result<WorkCell> {
         let start = match config.start {
             Start::Partial => tcp_in_hole(&self.truth, config.start_depth_m),
             Start::Above => start_pose(&self.nominal, config),
         };
         let gains = config.observe_gains.clone();
         let seed = self.seeds.sensors();
-        Cell::new(
+        WorkCell::new(
             pair,
             robot.clone(),
             params,
@@ -503,7 +503,7 @@ impl Setup {
 /// decides (seed, pair, offset), outcome `error`.
 pub fn errored_trial(
     pair: &PartPair,
-    params: &CellParams,
+    params: &WorkCellParams,
     config: &TrialConfig,
     seed: u64,
     message: String,

@@ -18,9 +18,9 @@ use crate::method::manifold::Manifold;
 use crate::method::session::{Phase, Recorder};
 use crate::method::trial::TrialResult;
 use crate::pose::{Iso, Pose6};
-use crate::twin::cell::Cell;
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
+use crate::twin::workcell::WorkCell;
 use std::path::Path;
 
 /// Time between recorded frames, s (50 Hz: a 20 s trial is 1 000 frames, about 0.4 MB).
@@ -104,7 +104,7 @@ impl Replay {
 }
 
 impl Recorder for Replay {
-    fn record(&mut self, cell: &Cell, phase: Phase) {
+    fn record(&mut self, cell: &WorkCell, phase: Phase) {
         let time_s = cell.time_s();
         if time_s + 1e-9 < self.next_frame_s {
             return;

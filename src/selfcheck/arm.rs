@@ -18,11 +18,11 @@ use crate::method::observe::observation_motion;
 use crate::method::primitives::{Drive, PerturbationState, SamplingMotion, ScaleSchedule};
 use crate::method::session::{Phase, Recorder, Session};
 use crate::pose::Iso;
-use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose};
 use crate::twin::control::{ControllerParams, ImpedanceGains};
 use crate::twin::geometry::{PartPair, Seat};
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::robot::RobotModel;
+use crate::twin::workcell::{SimFault, WorkCell, WorkCellParams, nominal_hole_pose};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 use std::ops::ControlFlow;
@@ -136,7 +136,7 @@ struct Monitor<'a> {
 }
 
 impl Recorder for Monitor<'_> {
-    fn record(&mut self, cell: &Cell, _: Phase) {
+    fn record(&mut self, cell: &WorkCell, _: Phase) {
         let started = Instant::now();
         let truth = cell.truth();
         let tcp = truth.tcp_pose();
@@ -163,7 +163,7 @@ impl Recorder for Monitor<'_> {
 pub fn validate_arm(
     pair: &PartPair,
     robot: &RobotModel,
-    params: &CellParams,
+    params: &WorkCellParams,
     config: &TrialConfig,
     sampler: &SamplerConfig,
 ) -> Result<ArmValidationReport> {
@@ -185,13 +185,13 @@ fn run_case(
     case: &Case,
     pair: &PartPair,
     robot: &RobotModel,
-    params: &CellParams,
+    params: &WorkCellParams,
     probe: &PenetrationProbe,
     limit_m: f64,
 ) -> Result<ArmCase> {
     let base_t_hole = nominal_hole_pose(pair, params);
     let start = base_t_hole * case.start;
-    let mut cell = Cell::new(
+    let mut cell = WorkCell::new(
         pair,
         robot.clone(),
         params,

@@ -4,12 +4,12 @@
 //! from the solver against a momentum check (m dv/dt minus the applied forces).
 
 use super::{CaseReport, Judgement, Report, Verdict, penetration_limit_m};
-use crate::twin::cell::BUILTIN_PEG_MASS_KG;
 use crate::twin::geometry::{PartPair, Seat};
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::physics::{
     PhysicsParams, add_dynamic, add_fixed, contact_wrench, pose64, v32, v64,
 };
+use crate::twin::workcell::BUILTIN_PEG_MASS_KG;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude::{ColliderHandle, PhysicsWorld, RigidBodyHandle};
 use serde::Serialize;

@@ -2,10 +2,10 @@
 //! arm really shows under its Cartesian impedance, measured in simulation by pushing the TCP.
 
 use crate::error::{Error, Result};
-use crate::twin::cell::{Cell, CellParams, nominal_hole_pose, tcp_in_hole};
 use crate::twin::control::{ImpedanceGains, tcp_error};
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
+use crate::twin::workcell::{WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
 use nalgebra::Vector6;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -78,7 +78,7 @@ pub struct AxisStiffness {
 pub fn measure_stiffness(
     pair: &PartPair,
     robot: &RobotModel,
-    params: &CellParams,
+    params: &WorkCellParams,
     gains: &ImpedanceGains,
     test: PushTest,
 ) -> Result<Vec<AxisStiffness>> {
@@ -88,7 +88,7 @@ pub fn measure_stiffness(
     (0..6)
         .into_par_iter()
         .map(|axis| {
-            let mut cell = Cell::new(pair, robot.clone(), params, None, &start, gains.clone(), 1)?;
+            let mut cell = WorkCell::new(pair, robot.clone(), params, None, &start, gains.clone(), 1)?;
             cell.run(test.settle_s);
             let before = cell.truth().tcp_pose();
             let magnitude = if axis < 3 {

@@ -3,10 +3,10 @@
 //! checks of its physics are in `crate::selfcheck`.
 
 pub mod assembly;
-pub mod cell;
 pub mod control;
 pub mod energy;
 pub mod geometry;
 pub mod physics;
 pub mod robot;
 pub mod sensing;
+pub mod workcell;

@@ -132,7 +132,7 @@ pub fn write_manifolds(dir: &Path, scenario: &Scenario, cache_dir: &Path) -> Res
         if let Some(m) = cache::cached(
             &pair,
             &scenario.manifold,
-            &scenario.cell_params_for(&cell),
+            &scenario.work_cell_params_for(&cell),
             cache_dir,
         )? {
             let name = format!("{MANIFOLD_FIGURE}{}-{}mm", cell.geometry, cell.clearance_mm);

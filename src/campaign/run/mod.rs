@@ -145,7 +145,7 @@ impl<'a> Plan<'a> {
         }
     }
 
-    /// Cell `cell`.
+    /// Campaign cell `cell`.
     pub fn cell(&self, cell: usize) -> &PlannedCell {
         &self.cells[cell]
     }
@@ -191,7 +191,7 @@ pub fn prepare(
             robots.insert(key.clone(), scenario.robot(cell).load()?.0);
         }
         if cell.method == Method::Manifold && !registering.iter().any(|(k, _)| *k == key) {
-            registering.push((key, scenario.cell_params_for(cell)));
+            registering.push((key, scenario.work_cell_params_for(cell)));
         }
     }
     let wanted: Vec<Wanted> = (registering.iter())

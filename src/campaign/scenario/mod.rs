@@ -23,10 +23,10 @@ use crate::method::manifold::MAX_POINTS;
 use crate::method::manifold::cache::ManifoldSpec;
 use crate::method::register::RegistrationConfig;
 use crate::twin::assembly;
-use crate::twin::cell::CellParams;
 use crate::twin::geometry::{self, PartPair};
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::sensing::SensorParams;
+use crate::twin::workcell::WorkCellParams;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -135,7 +135,7 @@ pub struct PlannedCell {
     /// The trial's settings: the scenario's gains, insertion and registration over the defaults.
     pub config: TrialConfig,
     /// The robot cell's: the scenario's physics (and its pair's own), sensors, fixture.
-    pub params: CellParams,
+    pub params: WorkCellParams,
 }
 
 impl Condition {
@@ -214,8 +214,8 @@ impl Scenario {
 
     /// The cell parameters of `cell`'s trials and manifold: [`Scenario::cell_params`] with its
     /// pair's `[[pair_physics]]` over them, and the hole where its robot's cell stands it.
-    pub fn cell_params_for(&self, cell: &Condition) -> CellParams {
-        let mut p = self.cell_params();
+    pub fn work_cell_params_for(&self, cell: &Condition) -> WorkCellParams {
+        let mut p = self.work_cell_params();
         if let Some(o) = self.pair_physics.iter().find(|o| o.matches(cell)) {
             o.physics.apply(&mut p);
         }
@@ -292,7 +292,7 @@ impl Scenario {
         self.ensure_gains_valid()?;
         self.insertion.ensure_valid("insertion")?;
         self.direct.insertion.ensure_valid("direct.insertion")?;
-        self.cell_params().ensure_valid()?;
+        self.work_cell_params().ensure_valid()?;
         self.ensure_pair_physics_valid()?;
         for cell in self.cells() {
             self.trial_config(&cell)
@@ -366,7 +366,7 @@ impl Scenario {
                     "{field}: {at} is given physics twice; give each pair one entry"
                 )));
             }
-            self.cell_params_for(cell)
+            self.work_cell_params_for(cell)
                 .ensure_valid()
                 .map_err(|e| Error::Input(format!("{field}: {e}")))?;
         }
@@ -402,7 +402,7 @@ impl Scenario {
         (self.cells().into_iter())
             .map(|condition| PlannedCell {
                 config: self.trial_config(&condition),
-                params: self.cell_params_for(&condition),
+                params: self.work_cell_params_for(&condition),
                 condition,
             })
             .collect()
@@ -472,8 +472,8 @@ impl Scenario {
     }
 
     /// The cell parameters (sensors, physics) of every trial and manifold.
-    pub fn cell_params(&self) -> CellParams {
-        let mut p = CellParams::default();
+    pub fn work_cell_params(&self) -> WorkCellParams {
+        let mut p = WorkCellParams::default();
         if let Some(s) = &self.sensors {
             p.sensors = s.clone();
         }
@@ -624,11 +624,11 @@ friction = 0.2
     #[test]
     fn position_projection_is_off_unless_physics_turns_it_on() {
         let plain = Scenario::parse(TWO_PAIRS).unwrap();
-        assert!(!plain.cell_params().physics.position_projection);
+        assert!(!plain.work_cell_params().physics.position_projection);
         let text = TWO_PAIRS.replace("[physics]\n", "[physics]\nposition_projection = true\n");
         let on = Scenario::parse(&text).unwrap();
         assert!(
-            on.cell_params_for(&cell("gear", 0.1))
+            on.work_cell_params_for(&cell("gear", 0.1))
                 .physics
                 .position_projection
         );
@@ -639,12 +639,12 @@ friction = 0.2
         use crate::twin::physics::ArmContacts;
         let plain = Scenario::parse(TWO_PAIRS).unwrap();
         assert_eq!(
-            plain.cell_params().physics.arm_contacts,
+            plain.work_cell_params().physics.arm_contacts,
             ArmContacts::JointSpace
         );
         let text = TWO_PAIRS.replace("[physics]\n", "[physics]\narm_contacts = \"rapier\"\n");
         let on = Scenario::parse(&text).unwrap();
-        let physics = on.cell_params_for(&cell("gear", 0.1)).physics;
+        let physics = on.work_cell_params_for(&cell("gear", 0.1)).physics;
         assert_eq!(physics.arm_contacts, ArmContacts::Rapier);
         let bad = TWO_PAIRS.replace("[physics]\n", "[physics]\narm_contacts = \"newton\"\n");
         let err = Scenario::parse(&bad).unwrap_err().to_string();
@@ -661,17 +661,19 @@ friction = 0.2
              physics = {{ pgs_iterations = 8 }}\n"
         );
         let s = Scenario::parse(&text).unwrap();
-        let gear = s.cell_params_for(&cell("gear", 0.1)).physics;
+        let gear = s.work_cell_params_for(&cell("gear", 0.1)).physics;
         assert_eq!((gear.pgs_iterations, gear.friction), (8, 0.2));
         for (g, c) in [("gear", 0.5), ("cross", 0.1), ("cross", 0.5)] {
-            let other = s.cell_params_for(&cell(g, c)).physics;
-            assert_eq!(other, s.cell_params().physics, "{g} {c}");
+            let other = s.work_cell_params_for(&cell(g, c)).physics;
+            assert_eq!(other, s.work_cell_params().physics, "{g} {c}");
         }
         // Without a clearance it holds at every clearance of the geometry.
         let every = text.replace("clearance_mm = 0.1\n", "");
         let s = Scenario::parse(&every).unwrap();
         assert_eq!(
-            s.cell_params_for(&cell("gear", 0.5)).physics.pgs_iterations,
+            s.work_cell_params_for(&cell("gear", 0.5))
+                .physics
+                .pgs_iterations,
             8
         );
         // A scenario without it keeps its fingerprint (campaigns resume across this change).

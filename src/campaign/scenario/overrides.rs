@@ -5,8 +5,8 @@
 use super::Condition;
 use crate::error::{Error, Result};
 use crate::method::config::TrialConfig;
-use crate::twin::cell::CellParams;
 use crate::twin::control::ImpedanceGains;
+use crate::twin::workcell::WorkCellParams;
 use serde::{Deserialize, Serialize};
 
 /// Gain overrides of the three online phases.
@@ -184,7 +184,7 @@ impl PairPhysics {
 
 impl PhysicsOverride {
     /// `params` with the fields given here replaced.
-    pub(super) fn apply(&self, params: &mut CellParams) {
+    pub(super) fn apply(&self, params: &mut WorkCellParams) {
         let ph = &mut params.physics;
         ph.dt_s = self.dt_s.unwrap_or(ph.dt_s);
         ph.solver_iterations = self.solver_iterations.unwrap_or(ph.solver_iterations);

@@ -21,10 +21,10 @@ use crate::method::primitives::{
 use crate::method::seeds;
 use crate::method::session::{Phase, Session};
 use crate::pose::{Pose6, PoseMetric};
-use crate::twin::cell::{Cell, CellParams, SimFault, nominal_hole_pose, tcp_in_hole};
 use crate::twin::control::ImpedanceGains;
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
+use crate::twin::workcell::{SimFault, WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -125,13 +125,13 @@ pub struct Episode {
 pub fn run_episode(
     pair: &PartPair,
     robot: &RobotModel,
-    params: &CellParams,
+    params: &WorkCellParams,
     config: &SamplerConfig,
     seed: u64,
 ) -> Result<Episode> {
     let hole = nominal_hole_pose(pair, params);
     let start = tcp_in_hole(&hole, config.motion.descent.start_depth_m);
-    let mut cell = Cell::new(
+    let mut cell = WorkCell::new(
         pair,
         robot.clone(),
         params,
@@ -316,7 +316,7 @@ pub struct BuildReport {
 pub struct BuildJob<'a> {
     pub pair: &'a PartPair,
     pub robot: &'a RobotModel,
-    pub params: &'a CellParams,
+    pub params: &'a WorkCellParams,
     pub config: &'a SamplerConfig,
     /// Poses kept after downsampling.
     pub points: usize,
@@ -349,7 +349,7 @@ impl BuildJob<'_> {
 pub fn build(
     pair: &PartPair,
     robot: &RobotModel,
-    params: &CellParams,
+    params: &WorkCellParams,
     config: &SamplerConfig,
     points: usize,
     seed: u64,
@@ -604,7 +604,7 @@ mod tests {
         };
         let (cross, key) = (pair("cross"), pair("key"));
         let robot = crate::twin::robot::urdf::iiwa14().unwrap();
-        let params = CellParams::default();
+        let params = WorkCellParams::default();
         let config = SamplerConfig {
             episodes: 3,
             episode_s: 0.4,

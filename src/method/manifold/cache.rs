@@ -11,9 +11,9 @@ use super::Manifold;
 use super::build::{BuildJob, SamplerConfig, build_all};
 use super::file;
 use crate::error::{Error, Result};
-use crate::twin::cell::{ARM_PREDICTION_RULE, CellParams};
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
+use crate::twin::workcell::{ARM_PREDICTION_RULE, WorkCellParams};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -61,7 +61,7 @@ pub struct Recipe<'a> {
     /// Points kept after downsampling.
     pub points: usize,
     pub seed: u64,
-    pub params: &'a CellParams,
+    pub params: &'a WorkCellParams,
 }
 
 impl Recipe<'_> {
@@ -124,7 +124,7 @@ pub fn resolve(
     pair: &PartPair,
     robot: &RobotModel,
     spec: &ManifoldSpec,
-    params: &CellParams,
+    params: &WorkCellParams,
     dir: Option<&Path>,
     progress: &dyn BuildProgress,
 ) -> Result<Manifold> {
@@ -142,7 +142,7 @@ pub fn resolve(
 pub struct Wanted<'a> {
     pub pair: &'a PartPair,
     pub robot: &'a RobotModel,
-    pub params: CellParams,
+    pub params: WorkCellParams,
 }
 
 /// The reference manifolds of `wanted` made as `spec` says, from the cache folder `dir`; the
@@ -204,7 +204,7 @@ pub fn resolve_all(
 fn recipe_of<'a>(
     spec: &ManifoldSpec,
     sampler: &'a SamplerConfig,
-    params: &'a CellParams,
+    params: &'a WorkCellParams,
 ) -> Recipe<'a> {
     Recipe {
         sampler,
@@ -219,7 +219,7 @@ fn recipe_of<'a>(
 pub fn cached(
     pair: &PartPair,
     spec: &ManifoldSpec,
-    params: &CellParams,
+    params: &WorkCellParams,
     dir: &Path,
 ) -> Result<Option<Manifold>> {
     let sampler = spec.sampler();

@@ -333,7 +333,7 @@ fn check_entry(section: &str, e: &PartEntry) -> std::result::Result<(), String> 
     }
     for (field, v, max) in [
         ("density_kg_per_m3", e.density_kg_per_m3, 30_000.0),
-        ("mass_kg", e.mass_kg, crate::twin::cell::MAX_PEG_MASS_KG),
+        ("mass_kg", e.mass_kg, crate::twin::workcell::MAX_PEG_MASS_KG),
         ("success_depth_mm", e.success_depth_mm, 1000.0),
     ] {
         if let Some(v) = v.filter(|v| !(*v > 0.0 && *v <= max)) {

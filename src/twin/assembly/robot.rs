@@ -15,11 +15,11 @@
 //! non-serial URDF or a hole out of reach fails there, naming the file and the field.
 
 use crate::error::{Error, Result};
-use crate::twin::cell::{CellParams, nominal_hole_pose, tcp_in_hole, with_peg};
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::Iso;
 use crate::twin::robot::spec::{RobotSource, RobotSpec};
 use crate::twin::robot::urdf;
+use crate::twin::workcell::{WorkCellParams, nominal_hole_pose, tcp_in_hole, with_peg};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -139,7 +139,7 @@ pub(super) fn check_reach(spec: &RobotSpec, pair: &PartPair, file: &Path) -> Res
         other => other,
     };
     let (model, warnings) = spec.load().map_err(in_file)?;
-    let params = CellParams::default().placed_for(spec);
+    let params = WorkCellParams::default().placed_for(spec);
     let model = with_peg(model, pair, &params).map_err(in_file)?;
     let start = tcp_in_hole(&nominal_hole_pose(pair, &params), -REACH_CHECK_HEIGHT_M);
     let q = model.start_configuration(&start).map_err(in_file)?;

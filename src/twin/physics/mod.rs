@@ -39,7 +39,7 @@ pub struct PhysicsParams {
     /// converge it in trials at a third of the cost of four substeps, but 13 of the 48 episodes
     /// of its manifold build still fault there, and eight passes leave none (docs/physics.md,
     /// "The arm at 0.1 mm"). The joint-space contacts do not use them. The arm cell uses four
-    /// (`twin::cell::ARM_PGS_ITERATIONS`); the free peg of `validate`, with four substeps, one.
+    /// (`twin::workcell::ARM_PGS_ITERATIONS`); the free peg of `validate`, with four substeps, one.
     pub pgs_iterations: usize,
     /// rapier's length unit, metres.
     pub length_unit_m: f64,
@@ -177,7 +177,7 @@ impl PhysicsParams {
 /// A copy of `world` that steps on exactly as `world` would: every body, collider, joint and
 /// contact (with its warm-start impulses) is cloned, and the copy gets a new pipeline. rapier's
 /// `PhysicsPipeline` holds only workspaces that each step refills, and cannot be cloned
-/// (`Cell::fork` forks a cell through this, for the trials of a campaign that share their
+/// (`WorkCell::fork` forks a cell through this, for the trials of a campaign that share their
 /// observation; the test `a_forked_cell_steps_on_as_the_original` checks it bit for bit).
 pub fn fork_world(world: &PhysicsWorld) -> PhysicsWorld {
     PhysicsWorld {

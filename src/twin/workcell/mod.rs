@@ -1,4 +1,4 @@
-//! The cell: the robot base on a table at the world origin, the hole fixture standing on the
+//! The work cell (the robot's, not a campaign's cell): the robot base on a table at the world origin, the hole fixture standing on the
 //! table in front of it, the peg rigidly on the flange, the controller and the sensors, stepped
 //! together. One control cycle (default 1 kHz) reads the sensors, runs the estimator and the
 //! controller; the torques are held over the physics steps of the cycle.
@@ -42,7 +42,7 @@ pub const ARM_PGS_ITERATIONS: usize = 4;
 
 /// The arm cell's floor of the contact prediction distance, m. The distance is otherwise 1.5
 /// times how far the peg's fastest point gets in the step, at its speed now plus what the
-/// torques of the last control cycle add in one step ([`Cell::accel_ahead`]): the floor covers
+/// torques of the last control cycle add in one step ([`WorkCell::accel_ahead`]): the floor covers
 /// only what neither foresees (contact impulses, the velocity-squared terms). The free peg of
 /// `validate` keeps 30 um ([`crate::twin::physics::MIN_PREDICTION_M`]). A piece pair within the
 /// distance is tested at every step, and 10 um instead of 30 halves the gear's step at 0.1 mm
@@ -53,10 +53,10 @@ pub const ARM_MIN_PREDICTION_M: f64 = 10e-6;
 /// under an earlier rule is rebuilt, not reused.
 pub const ARM_PREDICTION_RULE: &str = "1.5 x (speed + torque lookahead) x dt, 10 um floor";
 
-/// Cell layout and the parameters of everything in it.
+/// The work cell's layout and the parameters of everything in it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CellParams {
+pub struct WorkCellParams {
     #[serde(skip)]
     pub physics: PhysicsParams,
     pub controller: ControllerParams,
@@ -67,9 +67,9 @@ pub struct CellParams {
     pub peg_mass_kg: f64,
 }
 
-impl Default for CellParams {
+impl Default for WorkCellParams {
     fn default() -> Self {
-        CellParams {
+        WorkCellParams {
             physics: PhysicsParams {
                 solver_iterations: ARM_SOLVER_ITERATIONS,
                 pgs_iterations: ARM_PGS_ITERATIONS,
@@ -83,7 +83,7 @@ impl Default for CellParams {
     }
 }
 
-impl CellParams {
+impl WorkCellParams {
     /// Everything a cell checks when it is built, checked up front (so a campaign refuses a
     /// setting before it writes anything): physics ranges, a control period that is a whole
     /// number of physics steps, the sensors, the peg mass.
@@ -103,7 +103,7 @@ impl CellParams {
     }
 }
 
-impl CellParams {
+impl WorkCellParams {
     /// These parameters with the hole where `robot`'s cell stands it (its `hole_xy_m`, if any).
     pub fn placed_for(mut self, robot: &RobotSpec) -> Self {
         if let Some(xy) = robot.hole_xy_m {
@@ -132,7 +132,7 @@ pub fn flange_t_tcp(pair: &PartPair) -> Iso {
 }
 
 /// The nominal hole pose, base frame: the fixture's bottom on the table (z = 0), hole z up.
-pub fn nominal_hole_pose(pair: &PartPair, params: &CellParams) -> Iso {
+pub fn nominal_hole_pose(pair: &PartPair, params: &WorkCellParams) -> Iso {
     let height = -pair.hole.bounds().0.z;
     Iso::translation(params.hole_xy_m[0], params.hole_xy_m[1], height)
 }
@@ -144,11 +144,11 @@ pub fn tcp_in_hole(base_t_hole: &Iso, depth_m: f64) -> Iso {
 }
 
 /// The simulated cell, seen through its ports as the real cell is (as Drake's systems are):
-/// commands in ([`Cell::command_pose`], [`Cell::switch_gains`], [`Cell::set_mode`]),
+/// commands in ([`WorkCell::command_pose`], [`WorkCell::switch_gains`], [`WorkCell::set_mode`]),
 /// [`Measurements`] out. The ground truth (true pose, true contact wrench, joint state) is behind
-/// [`Cell::truth`], for scoring, validation and traces only; the method never holds a `Cell` (it
+/// [`WorkCell::truth`], for scoring, validation and traces only; the method never holds a `WorkCell` (it
 /// drives a `method::session::Session`, which lends it the ports alone).
-pub struct Cell {
+pub struct WorkCell {
     world: PhysicsWorld,
     arm: Arm,
     /// The robot model with the peg as its tool.
@@ -212,7 +212,7 @@ pub struct Measurements {
 /// The simulation's ground truth: for scoring, validating the physics and traces, never an input
 /// of the method.
 pub struct Truth<'a> {
-    cell: &'a Cell,
+    cell: &'a WorkCell,
 }
 
 impl Truth<'_> {
@@ -299,7 +299,7 @@ const RUNAWAY_FACTOR: f64 = 3.0;
 /// How long before a fault a torque at its limit counts as the fault's cause, s.
 pub const SATURATION_WINDOW_S: f64 = 0.1;
 
-impl Cell {
+impl WorkCell {
     /// Physics step, s.
     pub fn dt_s(&self) -> f64 {
         self.dt_s
@@ -447,10 +447,10 @@ mod tests {
     #[test]
     fn the_prediction_covers_every_step_of_a_stiff_arm_thrown_off_its_target() {
         let pair = build_builtin(builtin_by_name("cross").expect("cross"), 0.5e-3).expect("pair");
-        let params = CellParams::default();
+        let params = WorkCellParams::default();
         let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.05);
         let gains = ImpedanceGains::uniform(5000.0, 300.0, 0.1);
-        let mut cell = Cell::new(
+        let mut cell = WorkCell::new(
             &pair,
             iiwa14().expect("iiwa"),
             &params,
@@ -493,13 +493,13 @@ mod tests {
     #[test]
     fn a_forked_cell_steps_on_as_the_original() {
         let pair = build_builtin(builtin_by_name("cross").expect("cross"), 0.5e-3).expect("pair");
-        let params = CellParams::default();
+        let params = WorkCellParams::default();
         let nominal = nominal_hole_pose(&pair, &params);
         let truth = nominal * Iso::translation(1e-3, -0.5e-3, 0.0);
         let start = tcp_in_hole(&truth, 3e-3);
         let gains = ImpedanceGains::uniform(1000.0, 20.0, 0.7);
         let new_cell = || {
-            Cell::new(
+            WorkCell::new(
                 &pair,
                 iiwa14().expect("iiwa"),
                 &params,
@@ -511,7 +511,7 @@ mod tests {
             .expect("cell")
         };
         let mut original = new_cell();
-        let push = |cell: &mut Cell, k: usize| {
+        let push = |cell: &mut WorkCell, k: usize| {
             let wobble = Iso::rotation(Vector3::new(0.0, 0.02 * (k as f64 * 0.01).sin(), 0.0));
             cell.command_pose(tcp_in_hole(&nominal, 6e-3) * wobble);
         };
@@ -531,7 +531,7 @@ mod tests {
             original.step();
             fork.step();
             contact_steps += usize::from(original.truth().solver_contacts() > 0);
-            let bits = |c: &Cell| {
+            let bits = |c: &WorkCell| {
                 let m = c.measurements();
                 (
                     c.truth().q(),

@@ -1,6 +1,6 @@
-//! Building the cell ([`Cell::new`]) and forking it ([`Cell::fork`]).
+//! Building the cell ([`WorkCell::new`]) and forking it ([`WorkCell::fork`]).
 
-use super::{Cell, CellParams, flange_t_tcp};
+use super::{WorkCell, WorkCellParams, flange_t_tcp};
 use crate::error::{Error, Result};
 use crate::twin::control::{Controller, ImpedanceGains, Mode};
 use crate::twin::energy::EnergyLedger;
@@ -13,12 +13,12 @@ use crate::twin::sensing::Sensors;
 use nalgebra::{DVector, Point3, Vector3};
 use rapier3d::prelude::{ColliderBuilder, ColliderHandle, InteractionGroups, PhysicsWorld};
 
-impl Cell {
+impl WorkCell {
     /// An independent copy of the cell that steps on bit for bit as this one would
     /// ([`fork_world`]): two trials whose first stages are the same simulation run them once and
     /// branch here.
-    pub fn fork(&self) -> Cell {
-        Cell {
+    pub fn fork(&self) -> WorkCell {
+        WorkCell {
             world: fork_world(&self.world),
             arm: self.arm.clone(),
             model: self.model.clone(),
@@ -52,12 +52,12 @@ impl Cell {
     pub fn new(
         pair: &PartPair,
         robot: RobotModel,
-        params: &CellParams,
+        params: &WorkCellParams,
         base_t_hole: Option<Iso>,
         start_tcp: &Iso,
         gains: ImpedanceGains,
         seed: u64,
-    ) -> Result<Cell> {
+    ) -> Result<WorkCell> {
         params.ensure_valid()?;
         let steps_per_cycle = steps_per_control_cycle(params)?;
         let dt = params.physics.dt_s;
@@ -86,7 +86,7 @@ impl Cell {
             dt,
             arm.mechanical_energy(&world, &model.armature, &vec![0.0; n]),
         );
-        let mut cell = Cell {
+        let mut cell = WorkCell {
             world,
             arm,
             model,
@@ -130,7 +130,7 @@ impl Cell {
 fn build_world(
     pair: &PartPair,
     model: &RobotModel,
-    params: &CellParams,
+    params: &WorkCellParams,
     base_t_hole: Option<&Iso>,
     q0: &[f64],
 ) -> (PhysicsWorld, Arm, ColliderHandle) {
@@ -160,7 +160,7 @@ fn build_world(
 }
 
 /// Physics steps per control cycle: the control period must be a whole number of steps.
-pub(super) fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
+pub(super) fn steps_per_control_cycle(params: &WorkCellParams) -> Result<usize> {
     let dt = params.physics.dt_s;
     let period = 1.0 / params.controller.rate_hz;
     let steps = (period / dt).round() as usize;
@@ -175,7 +175,7 @@ pub(super) fn steps_per_control_cycle(params: &CellParams) -> Result<usize> {
 /// The robot model carrying the peg as its tool: the peg's mass properties (its convex pieces at
 /// the pair's peg mass, else the peg mass of `params`) on the flange at `flange_t_tcp`.
 /// The robot with the peg of `pair` on its flange as its tool (mass from the pair or `params`).
-pub fn with_peg(robot: RobotModel, pair: &PartPair, params: &CellParams) -> Result<RobotModel> {
+pub fn with_peg(robot: RobotModel, pair: &PartPair, params: &WorkCellParams) -> Result<RobotModel> {
     let tcp_on_flange = flange_t_tcp(pair);
     let peg_props = compound_collider(&pair.peg, params.physics.friction)
         .mass(pair.peg_mass_kg.unwrap_or(params.peg_mass_kg) as f32)

@@ -1,8 +1,8 @@
-//! One physics step of the cell ([`Cell::step`]), as rapier's pipeline steps its world: a
+//! One physics step of the cell ([`WorkCell::step`]), as rapier's pipeline steps its world: a
 //! control cycle when one is due, the torques applied, the world stepped, the peg's contacts
 //! solved, the energy accounted.
 
-use super::{ARM_MIN_PREDICTION_M, Cell};
+use super::{ARM_MIN_PREDICTION_M, WorkCell};
 use crate::twin::energy::StepEnergy;
 use crate::twin::physics::joint_contacts::{self};
 use crate::twin::physics::projection;
@@ -35,7 +35,7 @@ pub(super) fn free_acceleration_bound(
 
 /// Rounds of position projection per step at most.
 pub(super) const PROJECTION_ROUNDS: usize = 3;
-impl Cell {
+impl WorkCell {
     /// Advances one physics step (running a control cycle first when one is due).
     pub fn step(&mut self) {
         if self.steps.is_multiple_of(self.steps_per_cycle as u64) {
