@@ -1,6 +1,6 @@
-//! The work cell (the robot's, not a campaign's cell): the robot base on a table at the world origin, the hole fixture standing on the
-//! table in front of it, the peg rigidly on the flange, the controller and the sensors, stepped
-//! together. One control cycle (default 1 kHz) reads the sensors, runs the estimator and the
+//! The work cell (the robot's, not a campaign's cell): the robot base on a table at the world
+//! origin, the hole fixture standing on the table in front of it, the peg rigidly on the flange,
+//! the controller and the sensors, stepped together. One control cycle (default 1 kHz) reads the sensors, runs the estimator and the
 //! controller; the torques are held over the physics steps of the cycle.
 //!
 //! Frames: `world` = `base` (the base stands upright at the origin, z up), `hole` (mouth centre,
