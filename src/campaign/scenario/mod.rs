@@ -686,6 +686,34 @@ friction = 0.2
     }
 
     #[test]
+    fn joint_friction_is_read_from_physics_and_left_out_of_the_fingerprint_when_absent() {
+        let text = TWO_PAIRS.replace(
+            "[physics]\n",
+            "[physics]\njoint_friction = { coulomb_nm = [1, 1, 0.6, 0.6, 0.4, 0.2, 0.2], \
+             stribeck_rad_per_s = 0.02 }\n",
+        );
+        let s = Scenario::parse(&text).unwrap();
+        let f = s
+            .work_cell_params_for(&cell("gear", 0.1))
+            .physics
+            .joint_friction;
+        assert_eq!(f.coulomb_nm.as_deref().map(<[f64]>::len), Some(7));
+        assert_eq!((f.static_nm, f.stribeck_rad_per_s), (None, Some(0.02)));
+        let plain = Scenario::parse(TWO_PAIRS).unwrap();
+        assert!(
+            !serde_json::to_string(&plain)
+                .unwrap()
+                .contains("joint_friction")
+        );
+        let bad = TWO_PAIRS.replace(
+            "[physics]\n",
+            "[physics]\njoint_friction = { coulomb_nm = [100, 1, 1, 1, 1, 1, 1] }\n",
+        );
+        let e = Scenario::parse(&bad).unwrap_err().to_string();
+        assert!(e.contains("joint_friction.coulomb_nm[0]"), "{e}");
+    }
+
+    #[test]
     fn pair_physics_errors_name_the_entry_and_what_was_expected() {
         let entry = |g: &str, c: &str, p: &str| {
             format!("\n[[pair_physics]]\ngeometry = \"{g}\"\n{c}physics = {{ {p} }}\n")

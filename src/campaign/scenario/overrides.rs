@@ -160,6 +160,9 @@ pub struct PhysicsOverride {
     /// Who solves the arm's peg contacts: `"joint_space"` (default) or `"rapier"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub arm_contacts: Option<crate::twin::physics::ArmContacts>,
+    /// The arm's joint friction: `{ coulomb_nm = [..], static_nm = [..], stribeck_rad_per_s }`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_friction: Option<crate::twin::physics::JointFriction>,
 }
 
 /// `[[pair_physics]]`: physics parameters for one geometry (or assembly), at one clearance or
@@ -193,5 +196,8 @@ impl PhysicsOverride {
         ph.friction = self.friction.unwrap_or(ph.friction);
         ph.position_projection = self.position_projection.unwrap_or(ph.position_projection);
         ph.arm_contacts = self.arm_contacts.unwrap_or(ph.arm_contacts);
+        if let Some(f) = &self.joint_friction {
+            ph.joint_friction = f.clone();
+        }
     }
 }

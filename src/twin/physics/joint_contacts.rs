@@ -38,6 +38,13 @@
 //!   changes by `M^-1 J^T p` and, as semi-implicit Euler integrates positions with the new
 //!   velocity, its joints move by `dt` times that change.
 //!
+//! - The joints' own friction (`PhysicsParams::joint_friction`) adds one row per joint, its own
+//!   velocity, with the same Huber cost: `H(W_i, b_i; v_i)`, `b_i` the joint's friction torque
+//!   times the step, `W_i` as stiff relative to the joint's effective inertia as a contact row
+//!   (MuJoCo's `frictionloss` in this primal form). A joint whose torque stays under its bound
+//!   sticks (its impulse cancels the rest, without chatter); beyond it, it slides against the
+//!   bound.
+//!
 //! The cost is convex and piecewise smooth: Newton's method with a safeguarded line search.
 
 use crate::twin::robot::{Iso, Kinematics, RobotModel};
@@ -109,6 +116,45 @@ pub fn peg_contacts(world: &PhysicsWorld, peg: ColliderHandle) -> Vec<PegContact
     out
 }
 
+/// The joints' friction rows: per joint its stick weight (kg m^2) and its friction bound in the
+/// step (N m s, zero: frictionless).
+pub struct JointRows {
+    weight: Vec<f64>,
+    bound: Vec<f64>,
+}
+
+impl JointRows {
+    /// Rows of the bounds `bound` (N m s per joint) for the inertia whose inverse is
+    /// `mass_inverse`.
+    fn new(bound: &[f64], mass_inverse: &DMatrix<f64>) -> Self {
+        let ratio = IMPEDANCE / (1.0 - IMPEDANCE);
+        JointRows {
+            weight: (0..bound.len())
+                .map(|i| ratio / mass_inverse[(i, i)].max(f64::MIN_POSITIVE))
+                .collect(),
+            bound: bound.to_vec(),
+        }
+    }
+
+    /// Joint `i`'s friction impulse (N m s) at its velocity `v` (rad/s): `-W v` while it sticks,
+    /// `-b sign(v)` while it slides.
+    fn impulse(&self, i: usize, v: f64) -> f64 {
+        let (w, b) = (self.weight[i], self.bound[i]);
+        if w * v.abs() <= b {
+            -w * v
+        } else {
+            -b * v.signum()
+        }
+    }
+
+    /// The curvature of joint `i`'s friction cost at velocity `v`: `W` while it sticks, 0 while it
+    /// slides or without friction.
+    fn curvature(&self, i: usize, v: f64) -> f64 {
+        let (w, b) = (self.weight[i], self.bound[i]);
+        if b > 0.0 && w * v.abs() <= b { w } else { 0.0 }
+    }
+}
+
 /// What the contact solve did in one step.
 #[derive(Clone, Debug)]
 pub struct ContactSolve {
@@ -122,6 +168,10 @@ pub struct ContactSolve {
     pub work_j: f64,
     /// Contact points taken.
     pub points: usize,
+    /// The joints' friction torque over the step, N m (motor side: the torque sensors do not
+    /// read it), and its work at the velocities it left, J; zero without joint friction.
+    pub joint_friction_nm: DVector<f64>,
+    pub joint_friction_work_j: f64,
 }
 
 /// Per contact point: its normal row and two tangent rows (`n` columns each, stored flat), the
@@ -214,6 +264,7 @@ fn slip(s: &[f64; 3]) -> f64 {
 /// `v_free`, and each solution is checked against every point: one that the solution would push
 /// into its wall joins, and the solve goes on from there. A point left out is inactive at the
 /// solution, where the cost is then the full one, so the optimum is the full problem's.
+/// `joint_bounds` are the joints' friction bounds in the step (N m s), when they have friction.
 #[allow(clippy::too_many_arguments)]
 pub fn solve(
     model: &RobotModel,
@@ -222,20 +273,30 @@ pub fn solve(
     mass: &DMatrix<f64>,
     v_free: &DVector<f64>,
     contacts: &[PegContact],
-    friction: f64,
+    (friction, joint_bounds): (f64, Option<&[f64]>),
     dt: f64,
     about: &Point3<f64>,
 ) -> Option<ContactSolve> {
     let points = Points::new(model, k, world_t_base, contacts, dt);
     let first = points.pressing(v_free, &[]);
-    let (rows, v, speeds) = solve_from(mass, v_free, &points, friction, &first)?;
+    let (rows, joints, v, speeds) =
+        solve_from(mass, v_free, &points, (friction, joint_bounds), &first)?;
     let mut out = ContactSolve {
         dv: &v - v_free,
         force: Vector3::zeros(),
         torque: Vector3::zeros(),
         work_j: 0.0,
         points: contacts.len(),
+        joint_friction_nm: DVector::zeros(v.len()),
+        joint_friction_work_j: 0.0,
     };
+    if let Some(j) = &joints {
+        for i in 0..v.len() {
+            let p = j.impulse(i, v[i]);
+            out.joint_friction_nm[i] = p / dt;
+            out.joint_friction_work_j += p * v[i];
+        }
+    }
     for (c, s) in speeds.iter().enumerate() {
         let p = rows.impulses(c, s);
         let [n, t1, t2] = rows.frame[c];
@@ -249,14 +310,16 @@ pub fn solve(
 
 /// The solve of [`solve`] with the rows of the points `first` to begin with: the rows it ended
 /// with, the joint velocity and the rows' speeds there.
+#[allow(clippy::type_complexity)]
 fn solve_from(
     mass: &DMatrix<f64>,
     v_free: &DVector<f64>,
     points: &Points,
-    friction: f64,
+    (friction, joint_bounds): (f64, Option<&[f64]>),
     first: &[usize],
-) -> Option<(Rows, DVector<f64>, Vec<[f64; 3]>)> {
+) -> Option<(Rows, Option<JointRows>, DVector<f64>, Vec<[f64; 3]>)> {
     let mass_inverse = mass.clone().cholesky()?.inverse();
+    let joints = joint_bounds.map(|b| JointRows::new(b, &mass_inverse));
     let mut rows = Rows::new(v_free.len());
     rows.take(points, first, &mass_inverse);
     let mut v = v_free.clone();
@@ -264,7 +327,14 @@ fn solve_from(
     let mut buffers = NewtonBuffers::new(v.len());
     for _ in 0..FRICTION_ROUNDS {
         loop {
-            minimise(mass, v_free, &rows, &mut v, &mut speeds, &mut buffers);
+            minimise(
+                mass,
+                v_free,
+                (&rows, joints.as_ref()),
+                &mut v,
+                &mut speeds,
+                &mut buffers,
+            );
             let missed = points.pressing(&v, &rows.taken);
             if missed.is_empty() {
                 break;
@@ -276,7 +346,7 @@ fn solve_from(
             rows.bound[c] = friction * rows.normal_impulse(c, s[0]);
         }
     }
-    Some((rows, v, speeds))
+    Some((rows, joints, v, speeds))
 }
 
 /// Every contact point in the base frame, with its normal row's target speed, and the last
@@ -439,13 +509,16 @@ impl NewtonBuffers {
 fn minimise(
     mass: &DMatrix<f64>,
     v_free: &DVector<f64>,
-    rows: &Rows,
+    (rows, joints): (&Rows, Option<&JointRows>),
     v: &mut DVector<f64>,
     speeds: &mut [[f64; 3]],
     buf: &mut NewtonBuffers,
 ) -> usize {
     for step in 1..=MAX_NEWTON_STEPS {
         newton_system(mass, v_free, rows, v, speeds, buf);
+        if let Some(j) = joints {
+            add_joint_friction(j, v, buf);
+        }
         let hess = std::mem::replace(&mut buf.hess, DMatrix::zeros(0, 0));
         let Some(h) = hess.cholesky() else {
             buf.hess = DMatrix::zeros(v.len(), v.len());
@@ -458,9 +531,9 @@ fn minimise(
         rows.speeds_into(&buf.delta, &mut buf.sigma);
         mass.mul_to(&buf.delta, &mut buf.m_delta);
         let alpha = line_search(
-            rows,
+            (rows, joints),
             (&buf.dv, &buf.delta, &buf.m_delta),
-            speeds,
+            (v, speeds),
             &buf.sigma,
         );
         for (vi, di) in v.as_mut_slice().iter_mut().zip(buf.delta.as_slice()) {
@@ -529,6 +602,16 @@ fn newton_system(
     symmetrise_lower(&mut buf.hess);
 }
 
+/// Adds the joints' friction at `v` to the gradient and the Hessian's diagonal in `buf`.
+fn add_joint_friction(joints: &JointRows, v: &DVector<f64>, buf: &mut NewtonBuffers) {
+    let n = v.len();
+    for i in 0..n {
+        buf.grad[i] -= joints.impulse(i, v[i]);
+        buf.hess[(i, i)] += joints.curvature(i, v[i]);
+    }
+    debug_assert_eq!(buf.hess.nrows(), n);
+}
+
 /// The dot product of a row and a joint velocity, summed in joint order; unrolled for the
 /// iiwa's seven joints.
 fn dot(row: &[f64], v: &[f64]) -> f64 {
@@ -570,9 +653,9 @@ fn symmetrise_lower(m: &mut DMatrix<f64>) {
 /// with alpha; safeguarded Newton on it within a bracket. `dv` is `v - v_free`, `m_delta` is
 /// `M delta`; `s0` and `sd` are the rows' speeds at `v` and along `delta`.
 fn line_search(
-    rows: &Rows,
+    (rows, joints): (&Rows, Option<&JointRows>),
     (dv, delta, m_delta): (&DVector<f64>, &DVector<f64>, &DVector<f64>),
-    s0: &[[f64; 3]],
+    (v, s0): (&DVector<f64>, &[[f64; 3]]),
     sd: &[[f64; 3]],
 ) -> f64 {
     let (a0, a1) = (m_delta.dot(dv), m_delta.dot(delta));
@@ -601,6 +684,13 @@ fn line_search(
                 d2 += h11 * sigma[1] * sigma[1]
                     + 2.0 * h12 * sigma[1] * sigma[2]
                     + h22 * sigma[2] * sigma[2];
+            }
+        }
+        if let Some(j) = joints {
+            for (i, (vi, di)) in v.iter().zip(delta.iter()).enumerate() {
+                let at = vi + alpha * di;
+                d1 -= j.impulse(i, at) * di;
+                d2 += j.curvature(i, at) * di * di;
             }
         }
         (d1, d2)
@@ -663,7 +753,14 @@ mod tests {
         v: &mut DVector<f64>,
     ) -> usize {
         let mut buffers = NewtonBuffers::new(v.len());
-        minimise(mass, v_free, rows, v, &mut rows.speeds(v), &mut buffers)
+        minimise(
+            mass,
+            v_free,
+            (rows, None),
+            v,
+            &mut rows.speeds(v),
+            &mut buffers,
+        )
     }
 
     #[test]
@@ -759,8 +856,8 @@ mod tests {
         let points = Points::new(&model, &k, &Iso::identity(), &contacts, 1e-3);
         let first = points.pressing(&v_free, &[]);
         let all: Vec<usize> = (0..contacts.len()).collect();
-        let (rows, v, _) = solve_from(&mass, &v_free, &points, 0.3, &first).unwrap();
-        let (_, v_all, _) = solve_from(&mass, &v_free, &points, 0.3, &all).unwrap();
+        let (rows, _, v, _) = solve_from(&mass, &v_free, &points, (0.3, None), &first).unwrap();
+        let (_, _, v_all, _) = solve_from(&mass, &v_free, &points, (0.3, None), &all).unwrap();
         assert!(first.len() < rows.taken.len(), "no point joined: {first:?}");
         assert!(rows.taken.len() < all.len(), "every point joined");
         assert!((&v - &v_all).amax() < 1e-8, "{v} against {v_all}");

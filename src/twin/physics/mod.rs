@@ -60,6 +60,129 @@ pub struct PhysicsParams {
     /// of manifolds built with rapier's contacts before the switch still find them.
     #[serde(skip_serializing_if = "ArmContacts::is_rapier")]
     pub arm_contacts: ArmContacts,
+    /// The arm's joint friction (`joint_friction`); none unless given here or in the robot's
+    /// file. Not written when it is the default, so that earlier cache keys still hold.
+    #[serde(default, skip_serializing_if = "JointFriction::is_default")]
+    pub joint_friction: JointFriction,
+}
+
+/// Coulomb friction with stiction in each of the arm's joints, on the motor side of its torque
+/// sensor, as in the iiwa's gear units (their sensors sit at the gear output): the torque
+/// sensors and the wrench estimate do not read it as contact. It is solved with the peg's
+/// contacts in joint space (`joint_contacts`), so a stuck joint holds without chatter and breaks
+/// away where its torque exceeds the static value; the joints' viscous friction is their
+/// `<dynamics damping>`.
+///
+/// A joint sliding at speed `v` resists with `F_c + (F_s - F_c) exp(-(v / v_s)^2)` (the Stribeck
+/// curve, its speed taken at the start of the step), a joint at rest with up to `F_s`.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointFriction {
+    /// Coulomb (sliding) friction per joint, N m; absent: the robot file's `<dynamics friction>`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coulomb_nm: Option<Vec<f64>>,
+    /// Static (breakaway) friction per joint, N m, each at least its Coulomb value; absent: the
+    /// Coulomb values (no stiction peak).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub static_nm: Option<Vec<f64>>,
+    /// The Stribeck speed, rad/s: how fast the friction falls from static to Coulomb as a
+    /// joint speeds up; absent: [`STRIBECK_SPEED_RAD_PER_S`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stribeck_rad_per_s: Option<f64>,
+}
+
+/// The joint friction of one arm, resolved ([`JointFriction::resolve`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrictionLaw {
+    pub coulomb_nm: Vec<f64>,
+    pub static_nm: Vec<f64>,
+    pub stribeck_rad_per_s: f64,
+}
+
+impl FrictionLaw {
+    /// Joint `i`'s friction torque at speed `v` (rad/s), N m: the Stribeck curve.
+    pub fn torque_nm(&self, i: usize, v: f64) -> f64 {
+        let (c, s) = (self.coulomb_nm[i], self.static_nm[i]);
+        c + (s - c) * (-(v / self.stribeck_rad_per_s).powi(2)).exp()
+    }
+
+    /// Each joint's friction bound over a step of `dt` s that starts at speeds `qd`, N m s.
+    pub fn bounds(&self, qd: &[f64], dt: f64) -> Vec<f64> {
+        qd.iter()
+            .enumerate()
+            .map(|(i, &v)| self.torque_nm(i, v) * dt)
+            .collect()
+    }
+}
+
+/// The default Stribeck speed, rad/s (real-cell.md, section 2: about 0.01 rad/s).
+pub const STRIBECK_SPEED_RAD_PER_S: f64 = 0.01;
+/// Largest joint friction accepted, N m: beyond the iiwa's smallest drive torque (40 N m).
+pub const MAX_JOINT_FRICTION_NM: f64 = 40.0;
+/// Accepted Stribeck speeds, rad/s.
+pub const STRIBECK_RANGE_RAD_PER_S: (f64, f64) = (1e-4, 10.0);
+
+impl JointFriction {
+    fn is_default(&self) -> bool {
+        *self == JointFriction::default()
+    }
+
+    /// The law of a robot whose file gives `file_coulomb_nm` per joint; `None` when every joint
+    /// is frictionless. Errors name the field and what was expected.
+    pub fn resolve(&self, file_coulomb_nm: &[f64]) -> crate::error::Result<Option<FrictionLaw>> {
+        self.ensure_valid()?;
+        let n = file_coulomb_nm.len();
+        let per_joint = |field: &str, v: &Option<Vec<f64>>, default: &[f64]| match v {
+            Some(v) if v.len() != n => Err(crate::error::Error::Input(format!(
+                "physics.joint_friction.{field}: {} values for a robot of {n} joints",
+                v.len()
+            ))),
+            Some(v) => Ok(v.clone()),
+            None => Ok(default.to_vec()),
+        };
+        let coulomb = per_joint("coulomb_nm", &self.coulomb_nm, file_coulomb_nm)?;
+        let stiction = per_joint("static_nm", &self.static_nm, &coulomb)?;
+        if let Some(i) = (0..n).find(|&i| stiction[i] < coulomb[i]) {
+            return Err(crate::error::Error::Input(format!(
+                "physics.joint_friction.static_nm[{i}] = {}: expected at least the joint's \
+                 Coulomb friction {} N m",
+                stiction[i], coulomb[i]
+            )));
+        }
+        let stribeck_rad_per_s = self.stribeck_rad_per_s.unwrap_or(STRIBECK_SPEED_RAD_PER_S);
+        Ok(stiction.iter().any(|&s| s > 0.0).then_some(FrictionLaw {
+            coulomb_nm: coulomb,
+            static_nm: stiction,
+            stribeck_rad_per_s,
+        }))
+    }
+
+    /// Refuses values outside their ranges, naming the field.
+    fn ensure_valid(&self) -> crate::error::Result<()> {
+        for (field, values) in [
+            ("coulomb_nm", &self.coulomb_nm),
+            ("static_nm", &self.static_nm),
+        ] {
+            for (i, v) in values.iter().flatten().enumerate() {
+                if !(0.0..=MAX_JOINT_FRICTION_NM).contains(v) {
+                    return Err(crate::error::Error::Input(format!(
+                        "physics.joint_friction.{field}[{i}] = {v:?}: expected a torque in \
+                         [0, {MAX_JOINT_FRICTION_NM}] N m"
+                    )));
+                }
+            }
+        }
+        if let Some(v) = self.stribeck_rad_per_s {
+            let (lo, hi) = STRIBECK_RANGE_RAD_PER_S;
+            if !(lo..=hi).contains(&v) {
+                return Err(crate::error::Error::Input(format!(
+                    "physics.joint_friction.stribeck_rad_per_s = {v:?}: expected a speed in \
+                     [{lo}, {hi}] rad/s"
+                )));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The solver of the arm's peg contacts.
@@ -89,6 +212,7 @@ impl Default for PhysicsParams {
             friction: 0.3,
             position_projection: false,
             arm_contacts: ArmContacts::JointSpace,
+            joint_friction: JointFriction::default(),
         }
     }
 }
@@ -142,7 +266,7 @@ impl PhysicsParams {
             let range = format!("a coefficient in [{lo}, {hi}]");
             return bad("friction", format!("{:?}", self.friction), range);
         }
-        Ok(())
+        self.joint_friction.ensure_valid()
     }
 
     /// rapier's integration parameters for these settings.

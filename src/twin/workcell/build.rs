@@ -44,6 +44,7 @@ impl WorkCell {
             joint_space_contacts: self.joint_space_contacts,
             peg_contacts: self.peg_contacts.clone(),
             friction: self.friction,
+            joint_friction: self.joint_friction.clone(),
         }
     }
 
@@ -62,6 +63,8 @@ impl WorkCell {
         let steps_per_cycle = steps_per_control_cycle(params)?;
         let dt = params.physics.dt_s;
         let friction = params.physics.friction;
+        let file_friction: Vec<f64> = robot.joints.iter().map(|j| j.friction).collect();
+        let joint_friction = params.physics.joint_friction.resolve(&file_friction)?;
         let tcp_on_flange = flange_t_tcp(pair);
         let model = with_peg(robot, pair, params)?;
         let q0 = model.start_configuration(start_tcp)?;
@@ -112,6 +115,7 @@ impl WorkCell {
             joint_space_contacts,
             peg_contacts: None,
             friction,
+            joint_friction,
         };
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.
         let k = cell.model.kinematics(&q0);

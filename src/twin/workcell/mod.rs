@@ -17,7 +17,7 @@ use crate::twin::geometry::PartPair;
 use crate::twin::physics::arm::Arm;
 use crate::twin::physics::joint_contacts::ContactSolve;
 use crate::twin::physics::penetration::PenetrationProbe;
-use crate::twin::physics::{PhysicsParams, contact_wrench};
+use crate::twin::physics::{FrictionLaw, PhysicsParams, contact_wrench};
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::robot::{Iso, RobotModel};
 use crate::twin::sensing::{SensorParams, Sensors, Wrench6};
@@ -193,6 +193,8 @@ pub struct WorkCell {
     peg_contacts: Option<ContactSolve>,
     /// Coulomb friction between the peg and what it touches.
     friction: f64,
+    /// The joints' friction, when they have any (`PhysicsParams::joint_friction`).
+    joint_friction: Option<FrictionLaw>,
 }
 
 /// What the robot reports, as of its last control cycle: the only inputs of the method.

@@ -52,8 +52,9 @@ impl WorkCell {
         let q_before = self.arm.q(&self.world);
         self.world.step();
         self.arm.clear_torques(&mut self.world);
-        if self.joint_space_contacts {
-            self.solve_peg_contacts(&q_before);
+        let joint_bounds = (self.joint_friction.as_ref()).map(|f| f.bounds(&self.qd, dt));
+        if self.joint_space_contacts || joint_bounds.is_some() {
+            self.solve_peg_contacts(&q_before, joint_bounds.as_deref());
         }
         // Torques do not change velocities until the step, so the last step's velocities are
         // the ones before this one.
@@ -62,6 +63,10 @@ impl WorkCell {
             let qdd = (v - v_before) / dt;
             self.tau_link[i] =
                 self.tau[i] - self.model.armature[i] * qdd - self.model.joints[i].damping * v;
+        }
+        // The joints' friction acts between motor and sensor: the link gets what it leaves.
+        if let (Some(_), Some(solve)) = (&self.joint_friction, &self.peg_contacts) {
+            self.tau_link += &solve.joint_friction_nm;
         }
         self.steps += 1;
         let booked = self.step_energy(&q_before, &qd, dt);
@@ -72,13 +77,17 @@ impl WorkCell {
         }
     }
 
-    /// Solves the peg's contacts found at the start of the step (at `q_before`) against the
-    /// velocity rapier's step left, and applies the result as semi-implicit Euler does: the
-    /// velocity change, and the joints moved by the step times it ([`joint_contacts`]).
-    pub(super) fn solve_peg_contacts(&mut self, q_before: &[f64]) {
+    /// Solves the peg's contacts found at the start of the step (at `q_before`; rapier's own
+    /// when it solves them) and the joints' friction within `joint_bounds` (N m s per joint)
+    /// against the velocity rapier's step left, and applies the result as semi-implicit Euler
+    /// does: the velocity change, and the joints moved by the step times it ([`joint_contacts`]).
+    pub(super) fn solve_peg_contacts(&mut self, q_before: &[f64], joint_bounds: Option<&[f64]>) {
         self.peg_contacts = None;
-        let contacts = joint_contacts::peg_contacts(&self.world, self.peg);
-        if contacts.is_empty() {
+        let contacts = match self.joint_space_contacts {
+            true => joint_contacts::peg_contacts(&self.world, self.peg),
+            false => Vec::new(),
+        };
+        if contacts.is_empty() && joint_bounds.is_none() {
             return;
         }
         let k = self.model.kinematics(q_before);
@@ -92,7 +101,7 @@ impl WorkCell {
             &mass,
             &v_free,
             &contacts,
-            self.friction,
+            (self.friction, joint_bounds),
             self.dt_s,
             &about,
         ) else {
@@ -160,7 +169,10 @@ impl WorkCell {
             drives_j: torque_work + self.disturbance_power() * dt,
             contacts_j: self.arm.contact_power(&self.world) * dt
                 + self.peg_contacts.as_ref().map_or(0.0, |c| c.work_j),
-            damping_j: damping_work,
+            damping_j: match (&self.joint_friction, &self.peg_contacts) {
+                (Some(_), Some(solve)) => damping_work + solve.joint_friction_work_j,
+                _ => damping_work,
+            },
         }
     }
 
