@@ -152,8 +152,11 @@ pub struct PhysicsOverride {
     pub pgs_iterations: Option<usize>,
     /// Contact constraint natural frequency, Hz.
     pub contact_frequency_hz: Option<f64>,
-    /// Coulomb friction between peg and hole.
+    /// Coulomb friction between peg and hole (kinetic).
     pub friction: Option<f64>,
+    /// The static coefficient of a contact at rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub static_friction: Option<f64>,
     /// Position projection of the arm's peg after every step.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub position_projection: Option<bool>,
@@ -194,6 +197,7 @@ impl PhysicsOverride {
         ph.pgs_iterations = self.pgs_iterations.unwrap_or(ph.pgs_iterations);
         ph.contact_frequency_hz = self.contact_frequency_hz.unwrap_or(ph.contact_frequency_hz);
         ph.friction = self.friction.unwrap_or(ph.friction);
+        ph.static_friction = self.static_friction.or(ph.static_friction);
         ph.position_projection = self.position_projection.unwrap_or(ph.position_projection);
         ph.arm_contacts = self.arm_contacts.unwrap_or(ph.arm_contacts);
         if let Some(f) = &self.joint_friction {

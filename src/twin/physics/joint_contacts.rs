@@ -28,7 +28,8 @@
 //! - Friction is Coulomb's, isotropic: `T_c` holds the point's two tangent rows and `H` is the
 //!   Huber function of the slip speed, `1/2 D_f |x|^2` up to `|x| = b / D_f` and linear beyond,
 //!   so the friction impulse is `-D_f x` while it sticks and `-b x / |x|` while it slides. Its
-//!   bound `b` is `mu` times the normal impulse, refreshed from the solution
+//!   bound `b` is `mu` times the normal impulse (`mu` between the static and the kinetic
+//!   coefficient by the point's slip speed at the start of the step, `ContactFriction::at`), refreshed from the solution
 //!   [`FRICTION_ROUNDS`] times (staggered projections: D. M. Kaufman et al., "Staggered
 //!   projections for frictional contact in multibody systems", SIGGRAPH Asia 2008). A friction
 //!   pyramid as rows of their own (MuJoCo's pyramidal cone in this primal form) was tried first:
@@ -47,6 +48,7 @@
 //!
 //! The cost is convex and piecewise smooth: Newton's method with a safeguarded line search.
 
+use super::ContactFriction;
 use crate::twin::robot::{Iso, Kinematics, RobotModel};
 use nalgebra::{DMatrix, DVector, Point3, Vector3};
 use rapier3d::prelude::*;
@@ -183,6 +185,8 @@ struct Rows {
     normal_weight: Vec<f64>,
     friction_weight: Vec<f64>,
     bound: Vec<f64>,
+    /// The friction coefficient of each point.
+    mu: Vec<f64>,
     /// Normal and tangents (base frame) and the point on the peg, per point.
     frame: Vec<[Vector3<f64>; 3]>,
     point: Vec<Point3<f64>>,
@@ -264,23 +268,25 @@ fn slip(s: &[f64; 3]) -> f64 {
 /// `v_free`, and each solution is checked against every point: one that the solution would push
 /// into its wall joins, and the solve goes on from there. A point left out is inactive at the
 /// solution, where the cost is then the full one, so the optimum is the full problem's.
-/// `joint_bounds` are the joints' friction bounds in the step (N m s), when they have friction.
+/// `friction` is the contacts' (each point's coefficient from its slip speed at `v_start`, the
+/// joints' velocity at the start of the step), `joint_bounds` the joints' friction bounds in the
+/// step (N m s), when they have friction.
 #[allow(clippy::too_many_arguments)]
 pub fn solve(
     model: &RobotModel,
     k: &Kinematics,
     world_t_base: &Iso,
     mass: &DMatrix<f64>,
-    v_free: &DVector<f64>,
+    (v_start, v_free): (&[f64], &DVector<f64>),
     contacts: &[PegContact],
-    (friction, joint_bounds): (f64, Option<&[f64]>),
+    (friction, joint_bounds): (&ContactFriction, Option<&[f64]>),
     dt: f64,
     about: &Point3<f64>,
 ) -> Option<ContactSolve> {
-    let points = Points::new(model, k, world_t_base, contacts, dt);
+    let mut points = Points::new(model, k, world_t_base, contacts, dt);
+    points.friction_at(friction, v_start);
     let first = points.pressing(v_free, &[]);
-    let (rows, joints, v, speeds) =
-        solve_from(mass, v_free, &points, (friction, joint_bounds), &first)?;
+    let (rows, joints, v, speeds) = solve_from(mass, v_free, &points, joint_bounds, &first)?;
     let mut out = ContactSolve {
         dv: &v - v_free,
         force: Vector3::zeros(),
@@ -315,7 +321,7 @@ fn solve_from(
     mass: &DMatrix<f64>,
     v_free: &DVector<f64>,
     points: &Points,
-    (friction, joint_bounds): (f64, Option<&[f64]>),
+    joint_bounds: Option<&[f64]>,
     first: &[usize],
 ) -> Option<(Rows, Option<JointRows>, DVector<f64>, Vec<[f64; 3]>)> {
     let mass_inverse = mass.clone().cholesky()?.inverse();
@@ -343,7 +349,7 @@ fn solve_from(
             speeds = rows.speeds(&v);
         }
         for (c, s) in speeds.iter().enumerate() {
-            rows.bound[c] = friction * rows.normal_impulse(c, s[0]);
+            rows.bound[c] = rows.mu[c] * rows.normal_impulse(c, s[0]);
         }
     }
     Some((rows, joints, v, speeds))
@@ -361,6 +367,8 @@ struct Points {
     /// `d / dt` in the step (speculative contact); one `d` deep is pushed out by
     /// [`PUSH_OUT_FRACTION`] of it.
     target: Vec<f64>,
+    /// The point's friction coefficient ([`Points::friction_at`]).
+    mu: Vec<f64>,
 }
 
 impl Points {
@@ -393,7 +401,26 @@ impl Points {
                     }
                 })
                 .collect(),
+            mu: Vec::new(),
         }
+    }
+
+    /// Each point's friction coefficient under `friction` at the joint velocity `v` (the step's
+    /// start): the kinetic one, or toward the static one as the point's slip speed falls.
+    fn friction_at(&mut self, friction: &ContactFriction, v: &[f64]) {
+        if friction.static_ <= friction.kinetic {
+            self.mu = vec![friction.kinetic; self.point.len()];
+            return;
+        }
+        let twist = &self.jac * DVector::from_column_slice(v);
+        let (v_o, w) = (twist.fixed_rows::<3>(0), twist.fixed_rows::<3>(3));
+        self.mu = (0..self.point.len())
+            .map(|c| {
+                let velocity = v_o + w.cross(&self.lever[c]);
+                let n = self.normal[c];
+                friction.at((velocity - n * n.dot(&velocity)).norm())
+            })
+            .collect();
     }
 
     /// The points not in `taken` whose normal row, at joint velocity `v`, moves into the wall
@@ -423,6 +450,7 @@ impl Rows {
             normal_weight: Vec::new(),
             friction_weight: Vec::new(),
             bound: Vec::new(),
+            mu: Vec::new(),
             frame: Vec::new(),
             point: Vec::new(),
             taken: Vec::new(),
@@ -453,6 +481,7 @@ impl Rows {
             self.friction_weight
                 .push(ratio / (0.5 * (inverse_mass[1] + inverse_mass[2])));
             self.bound.push(0.0);
+            self.mu.push(points.mu[c]);
             self.frame.push([normal, t1, t2]);
             self.point.push(points.point[c]);
             self.taken.push(c);
@@ -739,6 +768,7 @@ mod tests {
             normal_weight: vec![weight],
             friction_weight: vec![friction_weight],
             bound: vec![bound],
+            mu: vec![0.0],
             frame: vec![[Vector3::x(), Vector3::y(), Vector3::z()]],
             point: vec![Point3::origin()],
             taken: vec![0],
@@ -853,11 +883,16 @@ mod tests {
             })
             .collect();
         let v_free = DVector::from_fn(7, |_, _| rng.random_range(-0.05..0.05));
-        let points = Points::new(&model, &k, &Iso::identity(), &contacts, 1e-3);
+        let mut points = Points::new(&model, &k, &Iso::identity(), &contacts, 1e-3);
+        let mu = ContactFriction {
+            kinetic: 0.3,
+            static_: 0.3,
+        };
+        points.friction_at(&mu, v_free.as_slice());
         let first = points.pressing(&v_free, &[]);
         let all: Vec<usize> = (0..contacts.len()).collect();
-        let (rows, _, v, _) = solve_from(&mass, &v_free, &points, (0.3, None), &first).unwrap();
-        let (_, _, v_all, _) = solve_from(&mass, &v_free, &points, (0.3, None), &all).unwrap();
+        let (rows, _, v, _) = solve_from(&mass, &v_free, &points, None, &first).unwrap();
+        let (_, _, v_all, _) = solve_from(&mass, &v_free, &points, None, &all).unwrap();
         assert!(first.len() < rows.taken.len(), "no point joined: {first:?}");
         assert!(rows.taken.len() < all.len(), "every point joined");
         assert!((&v - &v_all).amax() < 1e-8, "{v} against {v_all}");

@@ -45,8 +45,14 @@ pub struct PhysicsParams {
     pub length_unit_m: f64,
     /// Contact constraint natural frequency, Hz (dynamic and static contacts).
     pub contact_frequency_hz: f64,
-    /// Coulomb friction coefficient between peg and hole.
+    /// Coulomb friction coefficient between peg and hole while they slide (kinetic).
     pub friction: f64,
+    /// The static coefficient (at least `friction`) of a contact point at rest; absent: the
+    /// kinetic one (no stiction peak). The arm's joint-space contacts use it ([`ContactFriction`]);
+    /// rapier's contacts (the free peg's, the arm's with `arm_contacts = "rapier"`) take the
+    /// kinetic one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub static_friction: Option<f64>,
     /// Position projection of the arm's peg after every step (`projection`): what its exact
     /// pieces still overlap after the velocity-level solve is moved out. Experimental and off by
     /// default: it takes `validate --arm`'s motion cases at 0.1 mm from 12-43 um to under 2 um
@@ -210,6 +216,7 @@ impl Default for PhysicsParams {
             length_unit_m: 0.01,
             contact_frequency_hz: 240.0,
             friction: 0.3,
+            static_friction: None,
             position_projection: false,
             arm_contacts: ArmContacts::JointSpace,
             joint_friction: JointFriction::default(),
@@ -225,7 +232,40 @@ pub const ITERATIONS_RANGE: (usize, usize) = (1, 50);
 pub const CONTACT_FREQUENCY_RANGE_HZ: (f64, f64) = (1.0, 10_000.0);
 pub const FRICTION_RANGE: (f64, f64) = (0.0, 2.0);
 
+/// A contact point slower than about this at the start of a step is at rest, m/s: the friction
+/// falls from static to kinetic over it ([`ContactFriction::at`]).
+pub const CONTACT_STRIBECK_M_PER_S: f64 = 1e-3;
+
+/// Coulomb friction between the peg and what it touches, with stiction: a point sliding at `v`
+/// (m/s, at the start of the step) has the coefficient
+/// `mu_k + (mu_s - mu_k) exp(-(v / v_s)^2)`, `v_s` = [`CONTACT_STRIBECK_M_PER_S`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactFriction {
+    pub kinetic: f64,
+    pub static_: f64,
+}
+
+impl ContactFriction {
+    /// The coefficient of a point sliding at `slip_m_per_s`.
+    pub fn at(&self, slip_m_per_s: f64) -> f64 {
+        if self.static_ > self.kinetic {
+            let fall = (-(slip_m_per_s / CONTACT_STRIBECK_M_PER_S).powi(2)).exp();
+            self.kinetic + (self.static_ - self.kinetic) * fall
+        } else {
+            self.kinetic
+        }
+    }
+}
+
 impl PhysicsParams {
+    /// The peg's contact friction.
+    pub fn contact_friction(&self) -> ContactFriction {
+        ContactFriction {
+            kinetic: self.friction,
+            static_: self.static_friction.unwrap_or(self.friction),
+        }
+    }
+
     /// Refuses settings outside the accepted ranges, naming the field (as in a scenario's
     /// `[physics]` section) and the range.
     pub fn ensure_valid(&self) -> crate::error::Result<()> {
@@ -265,6 +305,13 @@ impl PhysicsParams {
             let (lo, hi) = FRICTION_RANGE;
             let range = format!("a coefficient in [{lo}, {hi}]");
             return bad("friction", format!("{:?}", self.friction), range);
+        }
+        if let Some(s) = self.static_friction
+            && !(within(s, FRICTION_RANGE) && s >= self.friction)
+        {
+            let hi = FRICTION_RANGE.1;
+            let range = format!("a coefficient in [friction = {}, {hi}]", self.friction);
+            return bad("static_friction", format!("{s:?}"), range);
         }
         self.joint_friction.ensure_valid()
     }

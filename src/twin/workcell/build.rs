@@ -44,6 +44,7 @@ impl WorkCell {
             joint_space_contacts: self.joint_space_contacts,
             peg_contacts: self.peg_contacts.clone(),
             friction: self.friction,
+            contact_friction: self.contact_friction,
             joint_friction: self.joint_friction.clone(),
         }
     }
@@ -115,6 +116,7 @@ impl WorkCell {
             joint_space_contacts,
             peg_contacts: None,
             friction,
+            contact_friction: params.physics.contact_friction(),
             joint_friction,
         };
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.

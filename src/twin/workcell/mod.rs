@@ -17,7 +17,7 @@ use crate::twin::geometry::PartPair;
 use crate::twin::physics::arm::Arm;
 use crate::twin::physics::joint_contacts::ContactSolve;
 use crate::twin::physics::penetration::PenetrationProbe;
-use crate::twin::physics::{FrictionLaw, PhysicsParams, contact_wrench};
+use crate::twin::physics::{ContactFriction, FrictionLaw, PhysicsParams, contact_wrench};
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::robot::{Iso, RobotModel};
 use crate::twin::sensing::{SensorParams, Sensors, Wrench6};
@@ -191,8 +191,10 @@ pub struct WorkCell {
     /// what that solve did in the last step (`None`: no contact, or rapier solves them).
     joint_space_contacts: bool,
     peg_contacts: Option<ContactSolve>,
-    /// Coulomb friction between the peg and what it touches.
+    /// Coulomb friction between the peg and what it touches: the kinetic coefficient (rapier's
+    /// colliders carry it), and with the static one for the joint-space contacts.
     friction: f64,
+    contact_friction: ContactFriction,
     /// The joints' friction, when they have any (`PhysicsParams::joint_friction`).
     joint_friction: Option<FrictionLaw>,
 }

@@ -99,9 +99,9 @@ impl WorkCell {
             &k,
             &self.arm.world_t_base,
             &mass,
-            &v_free,
+            (&self.qd, &v_free),
             &contacts,
-            (self.friction, joint_bounds),
+            (&self.contact_friction, joint_bounds),
             self.dt_s,
             &about,
         ) else {
