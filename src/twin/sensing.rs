@@ -14,6 +14,9 @@
 //! - **External wrench** at the TCP, base frame (force, and torque about the TCP): the damped
 //!   least-squares solution of `J^T F = tau_ext`, `F = (J J^T + l^2 I)^-1 J tau_ext`, then a
 //!   first-order low-pass filter.
+//! - **Calibration error** of that estimate (the load data, the model): a constant bias and a
+//!   gain, `F_reported = gain F + bias`, which the contact flag and every break condition read
+//!   (none by default).
 //! - **Contact**: `|F| > on` switches contact on, `|F| < off` switches it off (hysteresis;
 //!   `on` is the paper's epsilon_f).
 //!
@@ -52,7 +55,26 @@ pub struct SensorParams {
     pub contact_on_n: f64,
     /// Contact switches off below this force, N.
     pub contact_off_n: f64,
+    /// Bias of the reported wrench, N and N m (base frame, torque about the TCP); zero by default.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub wrench_bias: [f64; 6],
+    /// Gain of the reported wrench (1: none).
+    #[serde(skip_serializing_if = "is_one")]
+    pub wrench_gain: f64,
 }
+
+fn is_zero(v: &[f64; 6]) -> bool {
+    *v == [0.0; 6]
+}
+
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
+}
+
+/// Largest bias of the reported wrench accepted: force (N) and torque (N m).
+pub const MAX_WRENCH_BIAS: (f64, f64) = (50.0, 10.0);
+/// Accepted gains of the reported wrench.
+pub const WRENCH_GAIN_RANGE: (f64, f64) = (0.5, 2.0);
 
 impl Default for SensorParams {
     fn default() -> Self {
@@ -66,6 +88,8 @@ impl Default for SensorParams {
             pinv_damping: 0.01,
             contact_on_n: 5.0,
             contact_off_n: 3.0,
+            wrench_bias: [0.0; 6],
+            wrench_gain: 1.0,
         }
     }
 }
@@ -99,11 +123,29 @@ impl SensorParams {
             ("observer_gain_per_s", self.observer_gain_per_s, 1e-3, 1e4),
             ("wrench_filter_hz", self.wrench_filter_hz, 1e-3, 500.0),
             ("contact_on_n", self.contact_on_n, 1e-3, 500.0),
+            (
+                "wrench_gain",
+                self.wrench_gain,
+                WRENCH_GAIN_RANGE.0,
+                WRENCH_GAIN_RANGE.1,
+            ),
         ];
         for (name, v, least, most) in ranges {
             if !(v >= least && v <= most) {
                 return Err(Error::Input(format!(
                     "sensor {name} is {v:?}: expected a value in [{least}, {most}]"
+                )));
+            }
+        }
+        for (i, &b) in self.wrench_bias.iter().enumerate() {
+            let most = if i < 3 {
+                MAX_WRENCH_BIAS.0
+            } else {
+                MAX_WRENCH_BIAS.1
+            };
+            if b.is_nan() || b.abs() > most {
+                return Err(Error::Input(format!(
+                    "sensor wrench_bias[{i}] is {b:?}: expected a value in [-{most}, {most}]"
                 )));
             }
         }
@@ -132,6 +174,8 @@ pub struct Sensors {
     /// Observer output, estimated external joint torques, N m.
     pub tau_ext: DVector<f64>,
     /// Filtered external wrench at the TCP.
+    filtered: Wrench6,
+    /// The wrench reported: the filtered one through the calibration error.
     pub wrench: Wrench6,
     /// Contact flag with hysteresis.
     pub contact: bool,
@@ -147,6 +191,7 @@ impl Sensors {
             p0: None,
             integral: DVector::zeros(dof),
             tau_ext: DVector::zeros(dof),
+            filtered: Wrench6::zeros(),
             wrench: Wrench6::zeros(),
             contact: false,
         })
@@ -201,7 +246,13 @@ impl Sensors {
         let jac = &d.jacobian;
         let f = wrench_from_joint_torques(jac, &self.tau_ext, self.params.pinv_damping);
         let alpha = 1.0 - (-std::f64::consts::TAU * self.params.wrench_filter_hz * dt_s).exp();
-        self.wrench += (f - self.wrench) * alpha;
+        self.filtered += (f - self.filtered) * alpha;
+        let (gain, bias) = (self.params.wrench_gain, self.params.wrench_bias);
+        self.wrench = if gain == 1.0 && is_zero(&bias) {
+            self.filtered
+        } else {
+            self.filtered * gain + Wrench6::from(bias)
+        };
         let force = self.wrench.fixed_rows::<3>(0).norm();
         if self.contact && force < self.params.contact_off_n {
             self.contact = false;
