@@ -1,9 +1,12 @@
-//! The wrench estimate's calibration error (`[sensors] wrench_bias`, `wrench_gain`): a known push
-//! on the TCP is reported as `gain x push + bias`, and the contact flag reads the reported value.
+//! What the real cell senses and commands imperfectly. The wrench estimate's calibration error
+//! (`[sensors] wrench_bias`, `wrench_gain`): a known push on the TCP is reported as
+//! `gain x push + bias`, and the contact flag reads the reported value. The control latency
+//! (`ControllerParams::latency_s`): the drives get each cycle's torques that much later.
 
 use nalgebra::Vector6;
-use pegtwin::twin::control::ImpedanceGains;
+use pegtwin::twin::control::{ControllerParams, ImpedanceGains};
 use pegtwin::twin::geometry::{build_builtin, builtin_by_name};
+use pegtwin::twin::robot::Iso;
 use pegtwin::twin::robot::urdf::iiwa14;
 use pegtwin::twin::sensing::SensorParams;
 use pegtwin::twin::workcell::{WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
@@ -71,4 +74,48 @@ fn a_calibration_error_out_of_range_is_refused_naming_the_field() {
     };
     let e = p.ensure_valid().unwrap_err().to_string();
     assert!(e.contains("wrench_bias[3]"), "{e}");
+}
+
+/// The step (from a new target commanded at a control cycle) at which the drives' torques first
+/// move by more than 1 N m, with the control latency `latency_s`.
+fn first_torque_change(latency_s: f64) -> usize {
+    let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
+    let params = WorkCellParams {
+        controller: ControllerParams {
+            latency_s,
+            ..ControllerParams::default()
+        },
+        sensors: SensorParams::ideal(),
+        ..WorkCellParams::default()
+    };
+    let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
+    let gains = ImpedanceGains::default();
+    let mut cell =
+        WorkCell::new(&pair, iiwa14().unwrap(), &params, None, &start, gains, 1).unwrap();
+    cell.run(0.2);
+    let hold = cell.torques().clone();
+    cell.command_pose(Iso::translation(0.01, 0.0, 0.0) * start);
+    (0..100)
+        .find(|_| {
+            cell.step();
+            (cell.torques() - &hold).amax() > 1.0
+        })
+        .expect("the torques change")
+}
+
+#[test]
+fn the_drives_get_the_torques_a_latency_later() {
+    let now = first_torque_change(0.0);
+    assert_eq!(first_torque_change(0.005), now + 5);
+    let e = WorkCellParams {
+        controller: ControllerParams {
+            latency_s: 0.0015,
+            ..ControllerParams::default()
+        },
+        ..WorkCellParams::default()
+    }
+    .ensure_valid()
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("latency_s = 0.0015"), "{e}");
 }

@@ -207,6 +207,35 @@ pub struct ControllerParams {
     pub switch_blend_s: f64,
     /// Gravity in the robot base frame, m/s^2.
     pub gravity: [f64; 3],
+    /// Time from a control cycle's measurements to its torques reaching the drives, s: a whole
+    /// number of control periods (0: none, the default).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub latency_s: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+/// The longest control latency accepted, s.
+pub const MAX_LATENCY_S: f64 = 0.05;
+
+impl ControllerParams {
+    /// The latency in control cycles; an error naming `latency_s` unless it is a whole number
+    /// of control periods in [0, `MAX_LATENCY_S`].
+    pub fn latency_cycles(&self) -> Result<usize> {
+        let cycles = self.latency_s * self.rate_hz;
+        let whole = cycles.round();
+        if !(0.0..=MAX_LATENCY_S).contains(&self.latency_s) || (cycles - whole).abs() > 1e-6 {
+            return Err(Error::Input(format!(
+                "controller latency_s = {:?}: expected a whole number of control periods \
+                 ({} s) in [0, {MAX_LATENCY_S}] s",
+                self.latency_s,
+                1.0 / self.rate_hz
+            )));
+        }
+        Ok(whole as usize)
+    }
 }
 
 impl Default for ControllerParams {
@@ -217,6 +246,7 @@ impl Default for ControllerParams {
             rate_hz: 1000.0,
             switch_blend_s: 0.05,
             gravity: GRAVITY_UPRIGHT.into(),
+            latency_s: 0.0,
         }
     }
 }

@@ -32,6 +32,7 @@ impl WorkCell {
             dt_s: self.dt_s,
             tau: self.tau.clone(),
             tau_link: self.tau_link.clone(),
+            in_flight: self.in_flight.clone(),
             qd: self.qd.clone(),
             accel_ahead: self.accel_ahead,
             disturbance: self.disturbance,
@@ -104,6 +105,7 @@ impl WorkCell {
             dt_s: dt,
             tau: DVector::zeros(n),
             tau_link: DVector::zeros(n),
+            in_flight: std::collections::VecDeque::new(),
             accel_ahead: 0.0,
             qd: vec![0.0; n],
             disturbance: None,
@@ -125,6 +127,8 @@ impl WorkCell {
             .model
             .gravity_torques(&k, &Vector3::from(params.controller.gravity));
         cell.tau_link = cell.tau.clone();
+        let latency = params.controller.latency_cycles()?;
+        cell.in_flight = std::iter::repeat_n(cell.tau.clone(), latency).collect();
         Ok(cell)
     }
 }

@@ -90,6 +90,7 @@ impl WorkCellParams {
     pub fn ensure_valid(&self) -> Result<()> {
         self.physics.ensure_valid()?;
         steps_per_control_cycle(self)?;
+        self.controller.latency_cycles()?;
         self.sensors
             .ensure_valid()
             .map_err(|e| Error::Input(format!("sensors: {e}")))?;
@@ -167,6 +168,9 @@ pub struct WorkCell {
     tau: DVector<f64>,
     /// Link-side joint torques of the last physics step, N m.
     tau_link: DVector<f64>,
+    /// Torques computed and not yet at the drives, oldest first (`ControllerParams::latency_s`:
+    /// one per cycle of latency).
+    in_flight: std::collections::VecDeque<DVector<f64>>,
     /// Joint velocities after the last physics step, rad/s.
     qd: Vec<f64>,
     /// Bound on the acceleration of the peg's points under the torques of the last control

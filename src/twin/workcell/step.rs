@@ -205,7 +205,15 @@ impl WorkCell {
         let d = self.model.dynamics(&q_meas, &gravity);
         self.tcp_measured = d.tcp;
         self.sensors.estimate(&d, &self.qd, &tau_meas, period);
-        self.tau = self.controller.update(&d, &q_meas, &self.qd);
+        let command = self.controller.update(&d, &q_meas, &self.qd);
+        self.tau = match self.in_flight.pop_front() {
+            // Latency: this cycle's torques wait their turn behind the ones still in flight.
+            Some(due) => {
+                self.in_flight.push_back(command);
+                due
+            }
+            None => command,
+        };
         self.accel_ahead =
             free_acceleration_bound(&self.model, &d, &self.tau, &self.qd, self.peg_reach_m);
         let now = self.time_s();
