@@ -11,10 +11,20 @@ use pegtwin::twin::robot::urdf::iiwa14;
 use pegtwin::twin::sensing::SensorParams;
 use pegtwin::twin::workcell::{WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
 
+/// The cross's arm held at the Sunrise defaults in free air 0.1 m over the nominal hole, after
+/// 0.2 s at rest, under `params`; and its start pose.
+fn held_arm(params: &WorkCellParams) -> (WorkCell, Iso) {
+    let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
+    let start = tcp_in_hole(&nominal_hole_pose(&pair, params), -0.1);
+    let gains = ImpedanceGains::default();
+    let mut cell = WorkCell::new(&pair, iiwa14().unwrap(), params, None, &start, gains, 1).unwrap();
+    cell.run(0.2);
+    (cell, start)
+}
+
 /// The reported wrench after 1 s of a 10 N push along base x on the arm held at the Sunrise
 /// defaults in free air, with noise-free sensors and the calibration error `gain`, `bias`.
 fn reported(gain: f64, bias: [f64; 6]) -> (Vector6<f64>, bool) {
-    let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
     let params = WorkCellParams {
         sensors: SensorParams {
             wrench_gain: gain,
@@ -23,11 +33,7 @@ fn reported(gain: f64, bias: [f64; 6]) -> (Vector6<f64>, bool) {
         },
         ..WorkCellParams::default()
     };
-    let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
-    let gains = ImpedanceGains::default();
-    let mut cell =
-        WorkCell::new(&pair, iiwa14().unwrap(), &params, None, &start, gains, 1).unwrap();
-    cell.run(0.2);
+    let (mut cell, _) = held_arm(&params);
     let idle_contact = cell.measurements().contact;
     cell.set_disturbance(Some(Vector6::new(10.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
     cell.run(1.0);
@@ -79,7 +85,6 @@ fn a_calibration_error_out_of_range_is_refused_naming_the_field() {
 /// The step (from a new target commanded at a control cycle) at which the drives' torques first
 /// move by more than 1 N m, with the control latency `latency_s`.
 fn first_torque_change(latency_s: f64) -> usize {
-    let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
     let params = WorkCellParams {
         controller: ControllerParams {
             latency_s,
@@ -88,11 +93,7 @@ fn first_torque_change(latency_s: f64) -> usize {
         sensors: SensorParams::ideal(),
         ..WorkCellParams::default()
     };
-    let start = tcp_in_hole(&nominal_hole_pose(&pair, &params), -0.1);
-    let gains = ImpedanceGains::default();
-    let mut cell =
-        WorkCell::new(&pair, iiwa14().unwrap(), &params, None, &start, gains, 1).unwrap();
-    cell.run(0.2);
+    let (mut cell, start) = held_arm(&params);
     let hold = cell.torques().clone();
     cell.command_pose(Iso::translation(0.01, 0.0, 0.0) * start);
     (0..100)
