@@ -319,7 +319,8 @@ impl Points {
 
 #[cfg(test)]
 mod tests {
-    use super::newton::{add_outer, dot};
+    use super::newton::add_outer;
+    use super::rows::dot;
     use super::*;
 
     /// Two unit-mass joints, one contact point whose normal row is joint 0 and whose tangents

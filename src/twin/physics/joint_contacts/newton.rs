@@ -154,15 +154,6 @@ pub(super) fn add_joint_friction(joints: &JointRows, v: &DVector<f64>, buf: &mut
     debug_assert_eq!(buf.hess.nrows(), n);
 }
 
-/// The dot product of a row and a joint velocity, summed in joint order; unrolled for the
-/// iiwa's seven joints.
-pub(super) fn dot(row: &[f64], v: &[f64]) -> f64 {
-    match (<&[f64; 7]>::try_from(row), <&[f64; 7]>::try_from(v)) {
-        (Ok(row), Ok(v)) => row.iter().zip(v).map(|(a, b)| a * b).sum(),
-        _ => row.iter().zip(v).map(|(a, b)| a * b).sum(),
-    }
-}
-
 /// `hess += wa b^T` (column-major, `wa.len()` rows) over whole columns: the Hessian's upper
 /// triangle gets sums of its own, which [`symmetrise_lower`] then overwrites with the lower's.
 /// Unrolled for the iiwa's seven joints; any other count takes the loop.

@@ -1,7 +1,6 @@
 //! The solve's rows: each contact point's normal and two tangent rows with their weights and
 //! friction bound ([`Rows`]), and each joint's friction row ([`JointRows`]).
 
-use super::newton::dot;
 use super::{IMPEDANCE, Points};
 use nalgebra::{DMatrix, DVector, Point3, Vector3};
 use rapier3d::prelude::*;
@@ -184,5 +183,14 @@ pub(super) fn least_aligned_axis(n: &Vector3<f64>) -> Vector3<f64> {
         Vector3::y()
     } else {
         Vector3::z()
+    }
+}
+
+/// The dot product of a row and a joint velocity, summed in joint order; unrolled for the
+/// iiwa's seven joints.
+pub(super) fn dot(row: &[f64], v: &[f64]) -> f64 {
+    match (<&[f64; 7]>::try_from(row), <&[f64; 7]>::try_from(v)) {
+        (Ok(row), Ok(v)) => row.iter().zip(v).map(|(a, b)| a * b).sum(),
+        _ => row.iter().zip(v).map(|(a, b)| a * b).sum(),
     }
 }
