@@ -4,7 +4,7 @@
 
 use super::{ARM_MIN_PREDICTION_M, WorkCell};
 use crate::twin::energy::StepEnergy;
-use crate::twin::physics::joint_contacts::{self};
+use crate::twin::physics::joint_contacts;
 use crate::twin::physics::projection;
 use crate::twin::physics::{max_point_speed, set_prediction_for_speed, v64};
 use crate::twin::robot::{Dynamics, RobotModel};
@@ -35,6 +35,7 @@ pub(super) fn free_acceleration_bound(
 
 /// Rounds of position projection per step at most.
 pub(super) const PROJECTION_ROUNDS: usize = 3;
+
 impl WorkCell {
     /// Advances one physics step (running a control cycle first when one is due).
     pub fn step(&mut self) {
@@ -65,8 +66,12 @@ impl WorkCell {
                 self.tau[i] - self.model.armature[i] * qdd - self.model.joints[i].damping * v;
         }
         // The joints' friction acts between motor and sensor: the link gets what it leaves.
-        if let (Some(_), Some(solve)) = (&self.joint_friction, &self.peg_contacts) {
-            self.tau_link += &solve.joint_friction_nm;
+        if let Some(friction) = self
+            .peg_contacts
+            .as_ref()
+            .and_then(|c| c.joint_friction.as_ref())
+        {
+            self.tau_link += &friction.torque_nm;
         }
         self.steps += 1;
         let booked = self.step_energy(&q_before, &qd, dt);
@@ -169,9 +174,13 @@ impl WorkCell {
             drives_j: torque_work + self.disturbance_power() * dt,
             contacts_j: self.arm.contact_power(&self.world) * dt
                 + self.peg_contacts.as_ref().map_or(0.0, |c| c.work_j),
-            damping_j: match (&self.joint_friction, &self.peg_contacts) {
-                (Some(_), Some(solve)) => damping_work + solve.joint_friction_work_j,
-                _ => damping_work,
+            damping_j: match self
+                .peg_contacts
+                .as_ref()
+                .and_then(|c| c.joint_friction.as_ref())
+            {
+                Some(friction) => damping_work + friction.work_j,
+                None => damping_work,
             },
         }
     }

@@ -128,10 +128,17 @@ pub struct ContactSolve {
     pub work_j: f64,
     /// Contact points taken.
     pub points: usize,
-    /// The joints' friction torque over the step, N m (motor side: the torque sensors do not
-    /// read it), and its work at the velocities it left, J; zero without joint friction.
-    pub joint_friction_nm: DVector<f64>,
-    pub joint_friction_work_j: f64,
+    /// What the joints' friction did, when they have any.
+    pub joint_friction: Option<JointFrictionSolve>,
+}
+
+/// The joints' friction over one step.
+#[derive(Clone, Debug)]
+pub struct JointFrictionSolve {
+    /// Its torque on each joint, N m (motor side: the torque sensors do not read it).
+    pub torque_nm: DVector<f64>,
+    /// Its work at the velocities it left, J.
+    pub work_j: f64,
 }
 
 /// Solves the contacts `contacts` (world frame) of the peg carried by `model`'s last link at the
@@ -169,16 +176,14 @@ pub fn solve(
         torque: Vector3::zeros(),
         work_j: 0.0,
         points: contacts.len(),
-        joint_friction_nm: DVector::zeros(v.len()),
-        joint_friction_work_j: 0.0,
+        joint_friction: joints.map(|j| {
+            let impulse = DVector::from_fn(v.len(), |i, _| j.impulse(i, v[i]));
+            JointFrictionSolve {
+                work_j: impulse.dot(&v),
+                torque_nm: impulse / dt,
+            }
+        }),
     };
-    if let Some(j) = &joints {
-        for i in 0..v.len() {
-            let p = j.impulse(i, v[i]);
-            out.joint_friction_nm[i] = p / dt;
-            out.joint_friction_work_j += p * v[i];
-        }
-    }
     for (c, s) in speeds.iter().enumerate() {
         let p = rows.impulses(c, s);
         let [n, t1, t2] = rows.frame[c];
