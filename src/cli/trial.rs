@@ -17,6 +17,7 @@ use pegtwin::method::session::{Recorder, trace_csv};
 use pegtwin::method::trial::TrialResult;
 use pegtwin::replay::Replay;
 use pegtwin::twin::geometry::PartPair;
+use pegtwin::twin::real_cell::{Profile, RealCell};
 use pegtwin::twin::robot::RobotModel;
 use std::path::PathBuf;
 
@@ -77,6 +78,9 @@ pub struct TrialArgs {
     /// Trial seed: draws the hole offset and seeds every noise source.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The ideal cell or the real one (its imperfections drawn from the seed, docs/physics.md).
+    #[arg(long, value_parser = choice::<Profile>(), default_value = RealCell::default().profile.name())]
+    pub profile: Profile,
     /// Half-range of the hole's position offset, mm (U(-r, r) on x, y, z).
     #[arg(long, default_value_t = default_offsets_mm_deg().0, allow_negative_numbers = true)]
     pub offset_mm: f64,
@@ -109,6 +113,7 @@ impl TrialArgs {
             offset_deg: self.offset_deg,
             manifold: self.manifold.clone(),
             cache_dir: self.cache_dir.clone(),
+            profile: self.profile,
         }
     }
 }

@@ -12,6 +12,7 @@ use crate::method::session::Recorder;
 use crate::method::trial::{TrialResult, run_trial};
 use crate::twin::assembly::PairSource;
 use crate::twin::geometry::PartPair;
+use crate::twin::real_cell::{Profile, RealCell};
 use crate::twin::robot::RobotModel;
 use crate::twin::workcell::WorkCellParams;
 use std::path::PathBuf;
@@ -36,6 +37,9 @@ pub struct TrialRequest {
     pub manifold: Option<PathBuf>,
     /// Folder of cached manifolds (`None`: `$XDG_CACHE_HOME/pegtwin` or `~/.cache/pegtwin`).
     pub cache_dir: Option<PathBuf>,
+    /// The ideal cell or the real one, its imperfections drawn from the seed (`[cell]`'s
+    /// default ranges).
+    pub profile: Profile,
 }
 
 impl TrialRequest {
@@ -57,6 +61,7 @@ impl TrialRequest {
             offset_deg,
             manifold: None,
             cache_dir: None,
+            profile: RealCell::default().profile,
         }
     }
 
@@ -97,7 +102,8 @@ impl TrialRequest {
     ) -> Result<PreparedTrial> {
         let spec = self.pair.robot()?;
         let (robot, _warnings) = spec.load()?;
-        let params = WorkCellParams::default().placed_for(&spec);
+        let mut params = WorkCellParams::default().placed_for(&spec);
+        params.cell.profile = self.profile;
         let manifold = match self.method {
             Method::Manifold => Some(self.reference_manifold(&pair, &robot, &params, progress)?),
             Method::Direct => None,

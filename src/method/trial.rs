@@ -22,6 +22,7 @@ use crate::method::seeds::TrialSeeds;
 use crate::method::session::{Phase, Recorder, Session};
 use crate::pose::{Iso, Pose6};
 use crate::twin::geometry::PartPair;
+use crate::twin::real_cell::CellDraw;
 use crate::twin::robot::RobotModel;
 use crate::twin::workcell::{SimFault, WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
 use rand::{Rng, SeedableRng};
@@ -293,6 +294,9 @@ pub struct TrialResult {
     pub t_obs_s: f64,
     /// The true hole offset from nominal, mm and deg.
     pub offset: [f64; 6],
+    /// What the trial's cell drew of the real cell's imperfections (absent: the ideal cell).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub real_cell: Option<CellDraw>,
     /// `success`, `failure`, `sim_fault`, or `error` (the trial could not run to its end:
     /// `error_message` says why).
     pub outcome: String,
@@ -334,6 +338,9 @@ pub(crate) struct Setup {
     pub(crate) offset: Pose6,
     pub(crate) truth: Iso,
     pub(crate) seeds: TrialSeeds,
+    /// What the cell draws of the real cell's imperfections (from the sensors' seed, as
+    /// [`WorkCell::new`] draws it).
+    pub(crate) draw: Option<CellDraw>,
 }
 
 impl Setup {
@@ -350,6 +357,7 @@ impl Setup {
             offset,
             truth: nominal * offset.to_iso(),
             seeds,
+            draw: params.cell.draw(seeds.sensors()),
         }
     }
 
@@ -441,6 +449,7 @@ impl Setup {
             start: config.start,
             t_obs_s: config.t_obs_s,
             offset: self.offset.to_mm_deg(),
+            real_cell: self.draw.clone(),
             outcome: outcome(fault.is_some(), false).into(),
             stopped: None,
             success: false,

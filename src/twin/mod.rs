@@ -7,6 +7,7 @@ pub mod control;
 pub mod energy;
 pub mod geometry;
 pub mod physics;
+pub mod real_cell;
 pub mod robot;
 pub mod sensing;
 pub mod workcell;

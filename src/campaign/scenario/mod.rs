@@ -24,6 +24,7 @@ use crate::method::manifold::cache::ManifoldSpec;
 use crate::method::register::RegistrationConfig;
 use crate::twin::assembly;
 use crate::twin::geometry::{self, PartPair};
+use crate::twin::real_cell::RealCell;
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::sensing::SensorParams;
 use crate::twin::workcell::WorkCellParams;
@@ -87,6 +88,9 @@ pub struct Scenario {
     pub sensors: Option<SensorParams>,
     #[serde(default)]
     pub physics: PhysicsOverride,
+    /// The real cell's imperfections: the profile and the ranges of its draws (`[cell]`).
+    #[serde(default, skip_serializing_if = "RealCell::is_ideal")]
+    pub cell: RealCell,
     /// Physics for some pairs only, over `[physics]` (a pair whose contact solve needs more
     /// passes than the rest, so that the others keep their physics and their records).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -478,6 +482,7 @@ impl Scenario {
             p.sensors = s.clone();
         }
         self.physics.apply(&mut p);
+        p.cell = self.cell.clone();
         p
     }
 

@@ -8,6 +8,7 @@ use crate::twin::geometry::PartPair;
 use crate::twin::physics::arm::Arm;
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::physics::{ArmContacts, add_fixed, compound_collider, fork_world, v64};
+use crate::twin::real_cell::CellDraw;
 use crate::twin::robot::{Inertial, Iso, RobotModel, Tool};
 use crate::twin::sensing::Sensors;
 use nalgebra::{DVector, Point3, Vector3};
@@ -22,6 +23,8 @@ impl WorkCell {
             world: fork_world(&self.world),
             arm: self.arm.clone(),
             model: self.model.clone(),
+            believed: self.believed.clone(),
+            draw: self.draw.clone(),
             controller: self.controller.clone(),
             sensors: self.sensors.clone(),
             base_t_hole: self.base_t_hole,
@@ -51,7 +54,8 @@ impl WorkCell {
     }
 
     /// Builds the cell with the arm at rest at `start_tcp` (base frame) under Cartesian impedance
-    /// with `gains`; `base_t_hole: None` leaves the fixture out.
+    /// with `gains`; `base_t_hole: None` leaves the fixture out. `seed` seeds the sensors and,
+    /// in the real profile, the cell's draw of its imperfections ([`RealCell::draw`]).
     pub fn new(
         pair: &PartPair,
         robot: RobotModel,
@@ -62,12 +66,31 @@ impl WorkCell {
         seed: u64,
     ) -> Result<WorkCell> {
         params.ensure_valid()?;
+        let file_friction: Vec<f64> = robot.joints.iter().map(|j| j.friction).collect();
+        let draw = params.cell.draw(seed);
+        let drawn = match &draw {
+            Some(d) => drawn_params(params, d, &file_friction),
+            None => params.clone(),
+        };
+        let params = &drawn;
+        params.ensure_valid()?;
         let steps_per_cycle = steps_per_control_cycle(params)?;
         let dt = params.physics.dt_s;
         let friction = params.physics.friction;
-        let file_friction: Vec<f64> = robot.joints.iter().map(|j| j.friction).collect();
+        // The ideal cell's joints are frictionless whatever the robot file says.
+        let file_friction = match draw {
+            Some(_) => file_friction,
+            None => vec![0.0; file_friction.len()],
+        };
         let joint_friction = params.physics.joint_friction.resolve(&file_friction)?;
         let tcp_on_flange = flange_t_tcp(pair);
+        let payload_error = draw.as_ref().map_or(0.0, |d| d.payload_error);
+        let believed = with_peg_of_mass(
+            robot.clone(),
+            pair,
+            peg_mass_kg(pair, params) * (1.0 + payload_error),
+            params,
+        );
         let model = with_peg(robot, pair, params)?;
         let q0 = model.start_configuration(start_tcp)?;
 
@@ -95,6 +118,8 @@ impl WorkCell {
             world,
             arm,
             model,
+            believed,
+            draw,
             controller,
             sensors,
             base_t_hole,
@@ -122,9 +147,9 @@ impl WorkCell {
             joint_friction,
         };
         // Start holding the arm: the task torque is zero at the target, gravity is compensated.
-        let k = cell.model.kinematics(&q0);
+        let k = cell.believed.kinematics(&q0);
         cell.tau = cell
-            .model
+            .believed
             .gravity_torques(&k, &Vector3::from(params.controller.gravity));
         cell.tau_link = cell.tau.clone();
         let latency = params.controller.latency_cycles()?;
@@ -182,13 +207,32 @@ pub(super) fn steps_per_control_cycle(params: &WorkCellParams) -> Result<usize> 
     Ok(steps)
 }
 
-/// The robot model carrying the peg as its tool: the peg's mass properties (its convex pieces at
-/// the pair's peg mass, else the peg mass of `params`) on the flange at `flange_t_tcp`.
 /// The robot with the peg of `pair` on its flange as its tool (mass from the pair or `params`).
 pub fn with_peg(robot: RobotModel, pair: &PartPair, params: &WorkCellParams) -> Result<RobotModel> {
+    Ok(with_peg_of_mass(
+        robot,
+        pair,
+        peg_mass_kg(pair, params),
+        params,
+    ))
+}
+
+/// The mass of the peg with its holder, kg: the pair's own, else the one of `params`.
+fn peg_mass_kg(pair: &PartPair, params: &WorkCellParams) -> f64 {
+    pair.peg_mass_kg.unwrap_or(params.peg_mass_kg)
+}
+
+/// The robot with the peg of `pair`, of `mass_kg`, on its flange as its tool: the mass
+/// properties of its convex pieces at that mass, at `flange_t_tcp`.
+fn with_peg_of_mass(
+    robot: RobotModel,
+    pair: &PartPair,
+    mass_kg: f64,
+    params: &WorkCellParams,
+) -> RobotModel {
     let tcp_on_flange = flange_t_tcp(pair);
     let peg_props = compound_collider(&pair.peg, params.physics.friction)
-        .mass(pair.peg_mass_kg.unwrap_or(params.peg_mass_kg) as f32)
+        .mass(mass_kg as f32)
         .build()
         .mass_properties();
     let tool_inertial = Inertial {
@@ -197,10 +241,37 @@ pub fn with_peg(robot: RobotModel, pair: &PartPair, params: &WorkCellParams) -> 
         inertia: nalgebra::Matrix3::from(peg_props.reconstruct_inertia_matrix()).cast::<f64>(),
     }
     .transformed(&tcp_on_flange);
-    Ok(robot.with_tool(Tool {
+    robot.with_tool(Tool {
         inertial: tool_inertial,
         flange_t_tcp: tcp_on_flange,
-    }))
+    })
+}
+
+/// `params` with the imperfections `draw` took: the contact and joint friction, the wrench
+/// estimate's calibration error and the latency (the payload error is the believed model's).
+/// The joints' nominal friction is `[physics] joint_friction` if given, else the robot file's
+/// (`file_coulomb_nm`).
+fn drawn_params(
+    params: &WorkCellParams,
+    draw: &CellDraw,
+    file_coulomb_nm: &[f64],
+) -> WorkCellParams {
+    let mut p = params.clone();
+    p.physics.friction = draw.contact_friction;
+    p.physics.static_friction = Some(draw.static_friction);
+    let jf = &mut p.physics.joint_friction;
+    let scaled =
+        |v: &[f64]| -> Vec<f64> { v.iter().map(|f| f * draw.joint_friction_scale).collect() };
+    let coulomb = jf.coulomb_nm.as_deref().unwrap_or(file_coulomb_nm);
+    jf.static_nm = jf.static_nm.as_deref().map(scaled);
+    jf.coulomb_nm = Some(scaled(coulomb));
+    let s = &mut p.sensors;
+    for (b, d) in s.wrench_bias.iter_mut().zip(draw.wrench_bias) {
+        *b += d;
+    }
+    s.wrench_gain *= draw.wrench_gain;
+    p.controller.latency_s = params.cell.latency_s;
+    p
 }
 
 /// The table: a fixed slab with its top at z = 0 (the base stands on it).

@@ -18,6 +18,7 @@ use crate::twin::physics::arm::Arm;
 use crate::twin::physics::joint_contacts::ContactSolve;
 use crate::twin::physics::penetration::PenetrationProbe;
 use crate::twin::physics::{ContactFriction, FrictionLaw, PhysicsParams, contact_wrench};
+use crate::twin::real_cell::{CellDraw, RealCell};
 use crate::twin::robot::spec::RobotSpec;
 use crate::twin::robot::{Iso, RobotModel};
 use crate::twin::sensing::{SensorParams, Sensors, Wrench6};
@@ -65,6 +66,10 @@ pub struct WorkCellParams {
     pub hole_xy_m: [f64; 2],
     /// Mass of the peg with its holder, kg.
     pub peg_mass_kg: f64,
+    /// The real cell's imperfections, drawn by each cell from its seed (`[cell]`; absent in
+    /// files: the default profile).
+    #[serde(default, skip_serializing_if = "RealCell::is_ideal")]
+    pub cell: RealCell,
 }
 
 impl Default for WorkCellParams {
@@ -79,6 +84,7 @@ impl Default for WorkCellParams {
             sensors: SensorParams::default(),
             hole_xy_m: [0.55, 0.0],
             peg_mass_kg: BUILTIN_PEG_MASS_KG,
+            cell: RealCell::default(),
         }
     }
 }
@@ -91,6 +97,14 @@ impl WorkCellParams {
         self.physics.ensure_valid()?;
         steps_per_control_cycle(self)?;
         self.controller.latency_cycles()?;
+        self.cell.ensure_valid()?;
+        if !self.cell.is_ideal() {
+            ControllerParams {
+                latency_s: self.cell.latency_s,
+                ..self.controller.clone()
+            }
+            .latency_cycles()?;
+        }
         self.sensors
             .ensure_valid()
             .map_err(|e| Error::Input(format!("sensors: {e}")))?;
@@ -154,6 +168,10 @@ pub struct WorkCell {
     arm: Arm,
     /// The robot model with the peg as its tool.
     model: RobotModel,
+    /// The model the controller and the estimator use: `model` with the peg mass they believe.
+    believed: RobotModel,
+    /// What the cell drew of the real cell's imperfections (`None`: the ideal cell).
+    draw: Option<CellDraw>,
     controller: Controller,
     sensors: Sensors,
     /// True hole pose, base frame (`None`: no fixture, free space).
@@ -311,6 +329,11 @@ impl WorkCell {
     /// Physics step, s.
     pub fn dt_s(&self) -> f64 {
         self.dt_s
+    }
+
+    /// What the cell drew of the real cell's imperfections (`None`: the ideal cell).
+    pub fn draw(&self) -> Option<&CellDraw> {
+        self.draw.as_ref()
     }
 
     /// Simulated time, s.

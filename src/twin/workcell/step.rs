@@ -211,7 +211,7 @@ impl WorkCell {
         let q_meas = self.sensors.read_q(&q);
         let tau_meas = self.sensors.read_torques(&self.tau_link, period);
         let gravity = Vector3::from(self.controller.params.gravity);
-        let d = self.model.dynamics(&q_meas, &gravity);
+        let d = self.believed.dynamics(&q_meas, &gravity);
         self.tcp_measured = d.tcp;
         self.sensors.estimate(&d, &self.qd, &tau_meas, period);
         let command = self.controller.update(&d, &q_meas, &self.qd);

@@ -1,0 +1,280 @@
+//! The real cell: what a real iiwa cell has that an ideal twin lacks (issue 45;
+//! docs/sources.md, section 6), as one switch. `profile = "ideal"` turns every imperfection off:
+//! frictionless joints (the robot file's `<dynamics friction>` is ignored), one contact friction
+//! coefficient, an exact wrench estimate but for its noise, exact load data and no latency.
+//! `profile = "real"` draws, for each cell, the imperfections whose values are uncertain from
+//! uniform ranges ([`RealCell`]): the joints' friction, the peg-hole friction, the wrench
+//! estimate's bias and gain, and the error of the peg mass the controller believes; the control
+//! latency is fixed.
+//!
+//! A cell draws from its own seed ([`RealCell::draw`]): every trial from its trial seed, every
+//! sampling episode of a reference manifold from its episode seed, so a trial's draw is fixed by
+//! its seed alone, is recorded in its record ([`CellDraw`]) and comes back with `rerun`.
+
+use crate::choice::{Choice, Named};
+use crate::error::{Error, Result};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+/// Which cell the twin simulates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Profile {
+    /// Every imperfection off: the twin the physics self-checks run.
+    Ideal,
+    /// The imperfections of a real cell, drawn per trial within their ranges.
+    Real,
+}
+
+impl Choice for Profile {
+    const WHAT: &'static str = "profile";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "ideal",
+            value: Profile::Ideal,
+            help: "every imperfection off: frictionless joints, exact load data, no latency",
+        },
+        Named {
+            name: "real",
+            value: Profile::Real,
+            help: "a real cell's imperfections, drawn per trial within their ranges ([cell])",
+        },
+    ];
+}
+
+/// A uniform range, low and high (equal: a fixed value).
+pub type Range = [f64; 2];
+
+/// The `[cell]` section of a scenario: the profile and, for the real one, the range each
+/// uncertain value is drawn from. Fields not given keep their defaults (docs/sources.md, 6).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RealCell {
+    pub profile: Profile,
+    /// Scale of every joint's friction: the robot file's `<dynamics friction>`, or
+    /// `[physics] joint_friction` when the scenario gives it.
+    pub joint_friction_scale: Range,
+    /// Kinetic friction coefficient between peg and hole.
+    pub contact_friction: Range,
+    /// The static coefficient over the kinetic one (at least 1).
+    pub static_over_kinetic: Range,
+    /// Half-range of the wrench estimate's bias on each axis: force (N) and torque (N m).
+    pub wrench_bias: [f64; 2],
+    /// Gain of the wrench estimate.
+    pub wrench_gain: Range,
+    /// Relative error of the peg mass the controller and the estimator use (the load data).
+    pub payload_error: Range,
+    /// Time from a control cycle's measurements to its torques at the drives, s (a whole number
+    /// of control periods).
+    pub latency_s: f64,
+}
+
+impl Default for RealCell {
+    fn default() -> Self {
+        RealCell {
+            profile: Profile::Ideal,
+            joint_friction_scale: [0.5, 2.0],
+            contact_friction: [0.12, 0.76],
+            static_over_kinetic: [1.0, 1.0],
+            wrench_bias: [1.0, 0.1],
+            wrench_gain: [0.9, 1.1],
+            payload_error: [-0.1, 0.1],
+            latency_s: 0.001,
+        }
+    }
+}
+
+/// Largest joint friction scale accepted.
+pub const MAX_JOINT_FRICTION_SCALE: f64 = 10.0;
+/// Largest contact friction coefficient accepted (as `[physics] friction`).
+pub const MAX_CONTACT_FRICTION: f64 = 2.0;
+/// Largest relative payload error accepted.
+pub const MAX_PAYLOAD_ERROR: f64 = 0.5;
+
+/// What one cell drew: the values its imperfections took (recorded in a trial's record).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellDraw {
+    pub joint_friction_scale: f64,
+    /// Kinetic and static friction coefficients between peg and hole.
+    pub contact_friction: f64,
+    pub static_friction: f64,
+    /// Bias of the wrench estimate, N and N m (base frame, torque about the TCP).
+    pub wrench_bias: [f64; 6],
+    pub wrench_gain: f64,
+    /// The controller's peg mass over the true one, minus one.
+    pub payload_error: f64,
+}
+
+impl RealCell {
+    /// The ideal cell.
+    pub fn ideal() -> Self {
+        RealCell {
+            profile: Profile::Ideal,
+            ..RealCell::default()
+        }
+    }
+
+    pub fn is_ideal(&self) -> bool {
+        self.profile == Profile::Ideal
+    }
+
+    /// The draw of the cell seeded `seed` (`None`: the ideal cell draws nothing). Each value has
+    /// its place in one ChaCha8 stream, in the order of [`CellDraw`]'s fields.
+    pub fn draw(&self, seed: u64) -> Option<CellDraw> {
+        if self.is_ideal() {
+            return None;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ CELL_STREAM);
+        let mut within = |r: Range| r[0] + (r[1] - r[0]) * rng.random::<f64>();
+        let joint_friction_scale = within(self.joint_friction_scale);
+        let contact_friction = within(self.contact_friction);
+        let static_friction = contact_friction * within(self.static_over_kinetic);
+        let [force, torque] = self.wrench_bias;
+        let wrench_bias = [force, force, force, torque, torque, torque].map(|h| within([-h, h]));
+        Some(CellDraw {
+            joint_friction_scale,
+            contact_friction,
+            static_friction,
+            wrench_bias,
+            wrench_gain: within(self.wrench_gain),
+            payload_error: within(self.payload_error),
+        })
+    }
+
+    /// Refuses ranges outside what a cell can run with, naming the field.
+    pub fn ensure_valid(&self) -> Result<()> {
+        let ranges = [
+            (
+                "joint_friction_scale",
+                self.joint_friction_scale,
+                0.0,
+                MAX_JOINT_FRICTION_SCALE,
+            ),
+            (
+                "contact_friction",
+                self.contact_friction,
+                0.0,
+                MAX_CONTACT_FRICTION,
+            ),
+            ("static_over_kinetic", self.static_over_kinetic, 1.0, 5.0),
+            ("wrench_gain", self.wrench_gain, 0.5, 2.0),
+            (
+                "payload_error",
+                self.payload_error,
+                -MAX_PAYLOAD_ERROR,
+                MAX_PAYLOAD_ERROR,
+            ),
+        ];
+        for (field, [lo, hi], least, most) in ranges {
+            if !(least <= lo && lo <= hi && hi <= most) {
+                return Err(Error::Input(format!(
+                    "cell.{field} = [{lo:?}, {hi:?}]: expected a range [low, high] with \
+                     {least} <= low <= high <= {most}"
+                )));
+            }
+        }
+        let [force, torque] = self.wrench_bias;
+        let (most_f, most_t) = crate::twin::sensing::MAX_WRENCH_BIAS;
+        if !((0.0..=most_f).contains(&force) && (0.0..=most_t).contains(&torque)) {
+            return Err(Error::Input(format!(
+                "cell.wrench_bias = [{force:?}, {torque:?}]: expected half-ranges of at most \
+                 {most_f} N and {most_t} N m"
+            )));
+        }
+        if !(0.0..=crate::twin::control::MAX_LATENCY_S).contains(&self.latency_s) {
+            return Err(Error::Input(format!(
+                "cell.latency_s = {:?}: expected 0 to {} s",
+                self.latency_s,
+                crate::twin::control::MAX_LATENCY_S
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Mixed into a cell's seed for its draw ("cell"), so that the draw's stream differs from the
+/// sensors' (which the seed itself seeds).
+const CELL_STREAM: u64 = 0x6365_6c6c;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ideal_cell_draws_nothing_and_the_real_one_draws_within_its_ranges() {
+        assert_eq!(RealCell::ideal().draw(3), None);
+        let real = RealCell {
+            profile: Profile::Real,
+            static_over_kinetic: [1.0, 1.5],
+            ..RealCell::default()
+        };
+        for seed in 0..200 {
+            let d = real.draw(seed).unwrap();
+            assert_eq!(
+                Some(&d),
+                real.draw(seed).as_ref(),
+                "the same seed, the same draw"
+            );
+            assert!((0.5..=2.0).contains(&d.joint_friction_scale));
+            assert!((0.12..=0.76).contains(&d.contact_friction));
+            assert!(d.static_friction >= d.contact_friction);
+            assert!(d.static_friction <= 1.5 * d.contact_friction);
+            assert!(d.wrench_bias[..3].iter().all(|b| b.abs() <= 1.0));
+            assert!(d.wrench_bias[3..].iter().all(|b| b.abs() <= 0.1));
+            assert!((0.9..=1.1).contains(&d.wrench_gain));
+            assert!((-0.1..=0.1).contains(&d.payload_error));
+        }
+        assert_ne!(real.draw(1), real.draw(2));
+    }
+
+    #[test]
+    fn a_fixed_value_is_a_range_of_one_point() {
+        let real = RealCell {
+            profile: Profile::Real,
+            contact_friction: [0.3, 0.3],
+            payload_error: [0.0, 0.0],
+            ..RealCell::default()
+        };
+        let d = real.draw(9).unwrap();
+        assert_eq!(d.contact_friction, 0.3);
+        assert_eq!(d.payload_error, 0.0);
+    }
+
+    #[test]
+    fn bad_ranges_are_named() {
+        let bad = |cell: RealCell, field: &str| {
+            let e = cell.ensure_valid().unwrap_err().to_string();
+            assert!(e.contains(field), "{e}");
+        };
+        let base = RealCell::default();
+        bad(
+            RealCell {
+                contact_friction: [0.5, 0.2],
+                ..base.clone()
+            },
+            "cell.contact_friction",
+        );
+        bad(
+            RealCell {
+                static_over_kinetic: [0.8, 1.0],
+                ..base.clone()
+            },
+            "cell.static_over_kinetic",
+        );
+        bad(
+            RealCell {
+                wrench_bias: [100.0, 0.1],
+                ..base.clone()
+            },
+            "cell.wrench_bias",
+        );
+        bad(
+            RealCell {
+                latency_s: 1.0,
+                ..base
+            },
+            "cell.latency_s",
+        );
+    }
+}
