@@ -213,6 +213,7 @@ mod tests {
             peak_fz_failure_n: None,
             mean_phase_s: [0.0; 5],
             partial_to_full_s: None,
+            failure_modes: Default::default(),
         }
     }
 

@@ -131,6 +131,39 @@ pub struct CellSummary {
     /// on a real cell).
     #[serde(default)]
     pub partial_to_full_s: Option<MeanStd>,
+    /// How the failures that inserted failed ([`FailureModes`]).
+    #[serde(default)]
+    pub failure_modes: FailureModes,
+}
+
+/// How the failed trials of a cell that inserted without a physics fault failed, by why their
+/// insertion's target stopped and where the peg was (records' `insert_end`, `final_depth_mm`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FailureModes {
+    /// The jam break fired: the force along the peg passed `jam_force_n`.
+    pub jam: usize,
+    /// The seat break fired above the floor: the peg stalled short of it, pressing past
+    /// `seat_force_n` (friction or a wall held it, not the floor).
+    pub stall: usize,
+    /// The target ran its whole way (or out of time) and the peg stayed short of the floor with
+    /// less than the jam force: held by two-point contact and friction, wedged.
+    pub wedge: usize,
+}
+
+impl FailureModes {
+    /// Counts `result` if it failed after inserting without a fault.
+    fn add(&mut self, result: &crate::method::trial::TrialResult) {
+        use crate::method::insert::InsertEnd;
+        if result.success || result.fault.is_some() {
+            return;
+        }
+        match result.insert_end {
+            Some(InsertEnd::Jam) => self.jam += 1,
+            Some(InsertEnd::Seat) => self.stall += 1,
+            Some(InsertEnd::Travel | InsertEnd::Limit) => self.wedge += 1,
+            None => {}
+        }
+    }
 }
 
 /// The whole summary (`summary.json`).
@@ -274,6 +307,7 @@ struct CellTally {
     peak_fz_failure: Moments,
     phase_sums_s: [f64; 5],
     partial_to_full_s: Moments,
+    failure_modes: FailureModes,
 }
 
 impl CellTally {
@@ -300,6 +334,7 @@ impl CellTally {
             self.successes += usize::from(res.success);
             self.sim_faults += usize::from(res.fault.is_some());
             self.error_trials += usize::from(res.error_message.is_some());
+            self.failure_modes.add(res);
             let t = &res.times;
             let phases = [t.search_s, t.observe_s, t.retract_s, t.align_s, t.insert_s];
             (0..5).for_each(|p| self.phase_sums_s[p] += phases[p]);
@@ -326,6 +361,7 @@ impl CellTally {
             peak_fz_failure_n: self.peak_fz_failure.finish(),
             mean_phase_s: self.phase_sums_s.map(per_trial),
             partial_to_full_s: self.partial_to_full_s.finish(),
+            failure_modes: self.failure_modes,
             cell,
         }
     }
@@ -367,6 +403,9 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
             "align_s",
             "insert_s",
             "partial_to_full_success_s",
+            "failures_jam",
+            "failures_stall",
+            "failures_wedge",
         ]
         .map(String::from),
     );
@@ -394,6 +433,8 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
         }
         row.extend(c.mean_phase_s.iter().map(|t| format!("{t:.3}")));
         row.push(opt(c.partial_to_full_s.map(|m| m.mean), 3));
+        let f = c.failure_modes;
+        row.extend([f.jam, f.stall, f.wedge].map(|n| n.to_string()));
         w.write_record(&row).expect("in-memory csv");
     }
     w.into_inner().expect("in-memory csv")
@@ -402,7 +443,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
 /// The summary as a text table (what `campaign` prints).
 pub fn summary_table(summary: &Summary) -> String {
     let mut out = format!(
-        "{:<10} {:>6} {:<8} {:>5} {:>9} {:>13} {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11} {:>9}\n",
+        "{:<10} {:>6} {:<8} {:>5} {:>9} {:>13} {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11} {:>9} {:>12}\n",
         "geometry",
         "c mm",
         "method",
@@ -417,14 +458,15 @@ pub fn summary_table(summary: &Summary) -> String {
         "yw deg",
         "Fz ok N",
         "Fz fail N",
-        "to full s"
+        "to full s",
+        "jam/stl/wdg"
     );
     for c in summary.cells.iter().chain(&summary.pooled) {
         let mae = |a: usize| opt(c.mae.map(|m| m[a]), 2);
         let fz =
             |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1}±{:.1}", m.mean, m.std));
         out += &format!(
-            "{:<10} {:>6} {:<8} {:>5} {:>4}/{:<4} {:>5.0}-{:<5.0}% {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11} {:>9}\n",
+            "{:<10} {:>6} {:<8} {:>5} {:>4}/{:<4} {:>5.0}-{:<5.0}% {:>5} {:>5} {:>5} {:>5} {:>5} {:>5} {:>11} {:>11} {:>9} {:>12}\n",
             c.cell.geometry,
             c.cell.clearance_mm,
             c.cell.method.name(),
@@ -442,6 +484,10 @@ pub fn summary_table(summary: &Summary) -> String {
             fz(c.peak_fz_success_n),
             fz(c.peak_fz_failure_n),
             opt(c.partial_to_full_s.map(|m| m.mean), 1),
+            format!(
+                "{}/{}/{}",
+                c.failure_modes.jam, c.failure_modes.stall, c.failure_modes.wedge
+            ),
         );
     }
     let errors: usize = summary.cells.iter().map(|c| c.error_trials).sum();

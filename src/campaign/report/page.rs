@@ -23,7 +23,7 @@ pub(super) fn html(
     let rows = table_rows(summary, replay_links);
     let axes: String = AXES.iter().map(|a| format!("<th>MAE {a}</th>")).collect();
     format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n{pp}<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th><th>partial to full insertion s (successes)</th><th>replays</th></tr>\n{rows}</table>\n{figures}{rp}</body></html>\n",
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n{pp}<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th><th>partial to full insertion s (successes)</th><th title=\"failures that inserted: the jam break fired / the seat break fired above the floor / the target ran out with the peg held short of it\">failures jam / stall / wedge</th><th>replays</th></tr>\n{rows}</table>\n{figures}{rp}</body></html>\n",
         name = escape(&scenario.name),
         fp = summary.fingerprint,
         n = scenario.trials,
@@ -45,7 +45,7 @@ pub(super) fn table_rows(summary: &Summary, replay_links: &[ReplayLink]) -> Stri
         let fz =
             |m: Option<MeanStd>| m.map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std));
         rows += &format!(
-            "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}/{}</td><td>{:.0}-{:.0} %</td>{}<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             escape(&c.cell.geometry),
             c.cell.clearance_mm,
             c.cell.method,
@@ -61,6 +61,10 @@ pub(super) fn table_rows(summary: &Summary, replay_links: &[ReplayLink]) -> Stri
             fz(c.peak_fz_failure_n),
             c.partial_to_full_s
                 .map_or("-".into(), |m| format!("{:.1} ± {:.1}", m.mean, m.std)),
+            {
+                let f = c.failure_modes;
+                format!("{} / {} / {}", f.jam, f.stall, f.wedge)
+            },
             index.map_or(String::new(), |i| replays::cell_link(replay_links, i)),
         );
     }
