@@ -62,12 +62,7 @@ fn a_real_trial_records_its_draw_and_repeats_bit_for_bit() {
         "the same seed, the same record"
     );
     let record: serde_json::Value = serde_json::from_str(&first).unwrap();
-    let drawn = RealCell {
-        profile: Profile::Real,
-        ..RealCell::default()
-    }
-    .draw(3)
-    .unwrap();
+    let drawn = RealCell::default().draw(3).unwrap();
     assert_eq!(record["real_cell"], serde_json::to_value(&drawn).unwrap());
     let ideal: serde_json::Value = serde_json::from_str(&json(&request(Profile::Ideal))).unwrap();
     assert!(

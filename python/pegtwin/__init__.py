@@ -50,6 +50,7 @@ def trial(
     manifold: Optional[PathLike] = None,
     cache_dir: Optional[PathLike] = None,
     assembly: Optional[PathLike] = None,
+    profile: str = "real",
 ) -> Dict[str, Any]:
     """Runs one trial of the paper's experiment (paper V-A) and returns its record.
 
@@ -72,6 +73,8 @@ def trial(
             ``~/.cache/pegtwin``).
         assembly: an assembly file (your own peg and hole, README "Your own parts and robot")
             instead of ``geometry`` and ``clearance_mm``; its clearance is measured.
+        profile: ``real`` (the real cell's imperfections drawn from the seed; the record's
+            ``real_cell`` holds the draw) or ``ideal`` (every imperfection off).
 
     Raises:
         ValueError: an argument is out of range or unknown, or a file is unreadable.
@@ -88,6 +91,7 @@ def trial(
         manifold=_path(manifold),
         cache_dir=_path(cache_dir),
         assembly=_path(assembly),
+        profile=profile,
     )
     return json.loads(text)
 

@@ -18,6 +18,7 @@ def trial_json(
     manifold: Optional[str] = None,
     cache_dir: Optional[str] = None,
     assembly: Optional[str] = None,
+    profile: str = "real",
 ) -> str: ...
 def campaign(
     scenario: str,
@@ -64,6 +65,7 @@ class Env:
         max_step_deg: Optional[float] = None,
         variable_stiffness: bool = False,
         assembly: Optional[str] = None,
+        profile: str = "real",
     ) -> None: ...
     @property
     def action_len(self) -> int: ...

@@ -66,10 +66,12 @@ class PegInHoleEnv(gym.Env):
         max_step_deg: Optional[float] = None,
         variable_stiffness: bool = False,
         assembly: Optional[Union[str, os.PathLike]] = None,
+        profile: str = "real",
     ) -> None:
         """Args: see the module docs; values left out take the defaults named there.
         ``assembly``: an assembly file (your own peg and hole) instead of ``geometry`` and
-        ``clearance_mm``.
+        ``clearance_mm``. ``profile``: ``real`` (each episode's cell draws the real cell's
+        imperfections from its seed) or ``ideal``.
 
         Raises:
             ValueError: an argument is out of range or unknown (the command line's message).
@@ -88,6 +90,7 @@ class PegInHoleEnv(gym.Env):
             max_step_deg=max_step_deg,
             variable_stiffness=variable_stiffness,
             assembly=os.fspath(assembly) if mine else None,
+            profile=profile,
         )
         self.control_hz: float = self._env.control_hz
         self.episode_s: float = self._env.episode_s

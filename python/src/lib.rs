@@ -21,6 +21,7 @@ use pegtwin::method::register::{RegistrationConfig, Solver, register as register
 use pegtwin::method::request::TrialRequest;
 use pegtwin::pose::Pose6;
 use pegtwin::twin::assembly::PairSource;
+use pegtwin::twin::real_cell::Profile;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -55,7 +56,7 @@ fn pair_source(
 /// One trial (`pegtwin trial --json`): the record as JSON text. Values left out take the
 /// command line's defaults.
 #[pyfunction]
-#[pyo3(signature = (geometry, clearance_mm, seed, method, start, t_obs_s=None, offset_mm=None, offset_deg=None, manifold=None, cache_dir=None, assembly=None))]
+#[pyo3(signature = (geometry, clearance_mm, seed, method, start, t_obs_s=None, offset_mm=None, offset_deg=None, manifold=None, cache_dir=None, assembly=None, profile="real"))]
 #[allow(clippy::too_many_arguments)]
 fn trial_json(
     py: Python<'_>,
@@ -70,6 +71,7 @@ fn trial_json(
     manifold: Option<PathBuf>,
     cache_dir: Option<PathBuf>,
     assembly: Option<PathBuf>,
+    profile: &str,
 ) -> PyResult<String> {
     let defaults = TrialRequest {
         pair: pair_source(geometry, clearance_mm, assembly)?,
@@ -84,6 +86,7 @@ fn trial_json(
         offset_deg: offset_deg.unwrap_or(defaults.offset_deg),
         manifold,
         cache_dir,
+        profile: Profile::by_name(profile).map_err(py_err)?,
         ..defaults
     };
     let result = py.detach(|| request.run(&())).map_err(py_err)?;
@@ -307,7 +310,7 @@ struct Env {
 #[pymethods]
 impl Env {
     #[new]
-    #[pyo3(signature = (geometry, clearance_mm, start="partial", control_hz=None, episode_s=None, offset_mm=None, offset_deg=None, max_step_mm=None, max_step_deg=None, variable_stiffness=false, assembly=None))]
+    #[pyo3(signature = (geometry, clearance_mm, start="partial", control_hz=None, episode_s=None, offset_mm=None, offset_deg=None, max_step_mm=None, max_step_deg=None, variable_stiffness=false, assembly=None, profile="real"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -322,7 +325,9 @@ impl Env {
         max_step_deg: Option<f64>,
         variable_stiffness: bool,
         assembly: Option<PathBuf>,
+        profile: &str,
     ) -> PyResult<Self> {
+        let profile = Profile::by_name(profile).map_err(py_err)?;
         let pair = pair_source(geometry, clearance_mm, assembly)?;
         let d = EnvConfig::default();
         let m = offset_mm.map_or(d.offset_range[0], |v| v * 1e-3);
@@ -346,7 +351,9 @@ impl Env {
                 let (pair, _) = request.check()?;
                 let spec = request.pair.robot()?;
                 let (robot, _) = spec.load()?;
-                let params = pegtwin::twin::workcell::WorkCellParams::default().placed_for(&spec);
+                let mut params =
+                    pegtwin::twin::workcell::WorkCellParams::default().placed_for(&spec);
+                params.cell.profile = profile;
                 PegEnv::new(pair, robot, params, config)
             })
             .map_err(py_err)?;

@@ -8,6 +8,7 @@ use pegtwin::error::{Error, Result};
 use pegtwin::twin::assembly::PairSource;
 use pegtwin::twin::geometry::mesh::{MeshUnits, load_pair};
 use pegtwin::twin::geometry::{self, Builtin, PartPair};
+use pegtwin::twin::real_cell::Profile;
 use pegtwin::twin::robot::RobotModel;
 use pegtwin::twin::robot::spec::RobotSpec;
 use pegtwin::twin::workcell::WorkCellParams;
@@ -183,6 +184,10 @@ pub struct ValidateArgs {
     /// `[physics] arm_contacts = "rapier"`.
     #[arg(long, requires = "arm")]
     pub rapier_contacts: bool,
+    /// With --arm: the ideal cell (the physics check) or the real one, each case's cell
+    /// drawing the real cell's imperfections from its seed (docs/physics.md, "The real cell").
+    #[arg(long, requires = "arm", value_parser = choice::<Profile>(), default_value = Profile::Ideal.name())]
+    pub profile: Profile,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,

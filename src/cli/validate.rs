@@ -15,6 +15,7 @@ pub fn validate_command(args: ValidateArgs) -> Result<i32> {
     let passed = if args.arm {
         let (robot, mut params) = args.pair.robot()?;
         params.physics.position_projection = args.position_projection;
+        params.cell.profile = args.profile;
         if args.rapier_contacts {
             params.physics.arm_contacts = ArmContacts::Rapier;
         }

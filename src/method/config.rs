@@ -146,7 +146,8 @@ impl Default for TrialConfig {
             observe_depth_m: 18e-3,
             phase1_s: 3.6,
             observe_gains: ImpedanceGains {
-                stiffness: [1000.0, 1000.0, 1500.0, 5.0, 5.0, 5.0],
+                stiffness: [2424.0, 2424.0, 3636.0, 14.3, 14.3, 14.3],
+                damping_ratio: [0.73; 6],
                 additional_force: [0.0, 0.0, -5.0, 0.0, 0.0, 0.0],
                 ..Default::default()
             },
@@ -155,7 +156,8 @@ impl Default for TrialConfig {
             align_gains: ImpedanceGains::uniform(4000.0, 250.0, 0.7),
             align_s: 1.0,
             insert_gains: ImpedanceGains {
-                stiffness: [1500.0, 1500.0, 2000.0, 50.0, 50.0, 50.0],
+                stiffness: [2289.0, 2289.0, 2000.0, 20.0, 20.0, 20.0],
+                damping_ratio: [0.6; 6],
                 ..Default::default()
             },
             insert_speed_m_per_s: 15e-3,
@@ -171,6 +173,29 @@ impl Default for TrialConfig {
 }
 
 impl TrialConfig {
+    /// The defaults of a trial of `method`: the direct baseline inserts with its own gains and
+    /// seat force, tuned for success as the paper tuned its baseline (V-B:
+    /// `pegtwin tune scenarios/tune-direct.toml --target direct`, on the real cell with the
+    /// default observation gains; docs/scenarios.md, "Tuning").
+    pub fn for_method(method: Method) -> Self {
+        let base = TrialConfig {
+            method,
+            ..TrialConfig::default()
+        };
+        match method {
+            Method::Manifold => base,
+            Method::Direct => TrialConfig {
+                insert_gains: ImpedanceGains {
+                    stiffness: [3955.0, 3955.0, 3631.0, 11.0, 11.0, 11.0],
+                    damping_ratio: [0.82; 6],
+                    ..Default::default()
+                },
+                insert_seat_force_n: 20.9,
+                ..base
+            },
+        }
+    }
+
     /// Whether a trial under `other` runs the same simulation as one under `self` (same seed, pair
     /// and cell) until its observation ends: the two differ at most in what the later stages read
     /// (the method, the observations kept, registration, retract, alignment, insertion, the

@@ -86,7 +86,7 @@ impl TrialRequest {
             start: self.start,
             t_obs_s: self.t_obs_s,
             offset_range: [m, m, m, a, a, a],
-            ..Default::default()
+            ..TrialConfig::for_method(self.method)
         };
         config.ensure_valid()?;
         Ok((pair, config))

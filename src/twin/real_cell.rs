@@ -71,9 +71,11 @@ pub struct RealCell {
 }
 
 impl Default for RealCell {
+    /// The real cell at the ranges of docs/sources.md, 6: what a scenario, `pegtwin trial`, the
+    /// Python package and the Gymnasium environment run unless told `profile = "ideal"`.
     fn default() -> Self {
         RealCell {
-            profile: Profile::Ideal,
+            profile: Profile::Real,
             joint_friction_scale: [0.5, 2.0],
             contact_friction: [0.12, 0.76],
             static_over_kinetic: [1.0, 1.0],
@@ -107,7 +109,8 @@ pub struct CellDraw {
 }
 
 impl RealCell {
-    /// The ideal cell.
+    /// The ideal cell: what [`crate::twin::workcell::WorkCellParams`] builds by default, and the
+    /// physics self-checks run.
     pub fn ideal() -> Self {
         RealCell {
             profile: Profile::Ideal,
@@ -205,7 +208,6 @@ mod tests {
     fn the_ideal_cell_draws_nothing_and_the_real_one_draws_within_its_ranges() {
         assert_eq!(RealCell::ideal().draw(3), None);
         let real = RealCell {
-            profile: Profile::Real,
             static_over_kinetic: [1.0, 1.5],
             ..RealCell::default()
         };
@@ -231,7 +233,6 @@ mod tests {
     #[test]
     fn a_fixed_value_is_a_range_of_one_point() {
         let real = RealCell {
-            profile: Profile::Real,
             contact_friction: [0.3, 0.3],
             payload_error: [0.0, 0.0],
             ..RealCell::default()

@@ -328,8 +328,11 @@ impl Scenario {
     /// The gains of every phase, the scenario's and the direct baseline's, each over the
     /// phase's defaults, within the Sunrise ranges.
     fn ensure_gains_valid(&self) -> Result<()> {
-        let d = TrialConfig::default();
-        for (section, gains) in [("gains", &self.gains), ("direct.gains", &self.direct.gains)] {
+        for (section, gains, method) in [
+            ("gains", &self.gains, Method::Manifold),
+            ("direct.gains", &self.direct.gains, Method::Direct),
+        ] {
+            let d = TrialConfig::for_method(method);
             for (phase, o, base) in [
                 ("observe", &gains.observe, &d.observe_gains),
                 ("align", &gains.align, &d.align_gains),
@@ -450,7 +453,7 @@ impl Scenario {
     /// The trial configuration of a cell: the defaults, the scenario's overrides, and for the
     /// direct baseline its own (`[direct]`) over those.
     pub fn trial_config(&self, cell: &Condition) -> TrialConfig {
-        let d = TrialConfig::default();
+        let d = TrialConfig::for_method(cell.method);
         let (m, a) = (self.offset_mm * 1e-3, self.offset_deg.to_radians());
         let mut c = TrialConfig {
             method: cell.method,
@@ -708,7 +711,7 @@ friction = 0.2
         assert!(
             !serde_json::to_string(&plain)
                 .unwrap()
-                .contains("joint_friction")
+                .contains("\"joint_friction\"")
         );
         let bad = TWO_PAIRS.replace(
             "[physics]\n",

@@ -66,9 +66,12 @@ pub struct WorkCellParams {
     pub hole_xy_m: [f64; 2],
     /// Mass of the peg with its holder, kg.
     pub peg_mass_kg: f64,
-    /// The real cell's imperfections, drawn by each cell from its seed (`[cell]`; absent in
-    /// files: the default profile).
-    #[serde(default, skip_serializing_if = "RealCell::is_ideal")]
+    /// The real cell's imperfections, drawn by each cell from its seed (`[cell]`); the ideal
+    /// cell by default (absent in files: ideal), which a scenario or a trial request replaces.
+    #[serde(
+        default = "RealCell::ideal",
+        skip_serializing_if = "RealCell::is_ideal"
+    )]
     pub cell: RealCell,
 }
 
@@ -84,7 +87,7 @@ impl Default for WorkCellParams {
             sensors: SensorParams::default(),
             hole_xy_m: [0.55, 0.0],
             peg_mass_kg: BUILTIN_PEG_MASS_KG,
-            cell: RealCell::default(),
+            cell: RealCell::ideal(),
         }
     }
 }
