@@ -185,7 +185,9 @@ pub struct ValidateArgs {
     #[arg(long, requires = "arm")]
     pub rapier_contacts: bool,
     /// With --arm: the ideal cell (the physics check) or the real one, each case's cell
-    /// drawing the real cell's imperfections from its seed (docs/physics.md, "The real cell").
+    /// drawing the real cell's imperfections from its seed (docs/physics.md, "The real cell");
+    /// there a case passes on soundness alone (no fault, penetration within the bar) and its
+    /// ideal outcome is reported.
     #[arg(long, requires = "arm", value_parser = choice::<Profile>(), default_value = Profile::Ideal.name())]
     pub profile: Profile,
     /// Print the report as JSON.
