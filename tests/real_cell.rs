@@ -29,6 +29,7 @@ fn real(edit: impl FnOnce(&mut RealCell)) -> RealCell {
         wrench_gain: [1.0, 1.0],
         payload_error: [0.0, 0.0],
         latency_s: 0.0,
+        encoder_offset_rad: 0.0,
     };
     edit(&mut cell);
     cell
@@ -62,7 +63,7 @@ fn a_real_trial_records_its_draw_and_repeats_bit_for_bit() {
         "the same seed, the same record"
     );
     let record: serde_json::Value = serde_json::from_str(&first).unwrap();
-    let drawn = RealCell::default().draw(3).unwrap();
+    let drawn = RealCell::default().draw(3, 7).unwrap();
     assert_eq!(record["real_cell"], serde_json::to_value(&drawn).unwrap());
     let ideal: serde_json::Value = serde_json::from_str(&json(&request(Profile::Ideal))).unwrap();
     assert!(
@@ -139,5 +140,27 @@ fn wrong_load_data_moves_the_held_tcp_by_what_its_stiffness_predicts() {
     assert!(
         (rise - predicted).abs() < 0.2 * predicted,
         "rose {rise} m, predicted {predicted} m"
+    );
+}
+
+#[test]
+fn encoder_offsets_move_the_measured_tcp_as_the_kinematics_of_the_offset_joints_say() {
+    let cell = real(|c| c.encoder_offset_rad = 1e-3);
+    let mut c = free_cell(iiwa14().unwrap(), cell, ImpedanceGains::default(), 7);
+    c.run(0.2);
+    let offsets = c.draw().unwrap().encoder_offset_rad.clone();
+    assert_eq!(offsets.len(), 7);
+    let q = c.truth().q();
+    let seen: Vec<f64> = q.iter().zip(&offsets).map(|(q, o)| q + o).collect();
+    let params = WorkCellParams::default();
+    let model = pegtwin::twin::workcell::with_peg(iiwa14().unwrap(), &cross(), &params).unwrap();
+    let expected = model.tcp_pose(&seen).translation.vector;
+    let truth = c.truth().tcp_pose().translation.vector;
+    let measured = c.measurements().tcp.translation.vector;
+    assert!((measured - truth).norm() > 0.1e-3, "the offsets moved it");
+    // Within the encoders' 20-bit quantisation over the arm's reach.
+    assert!(
+        (measured - expected).norm() < 20e-6,
+        "{measured} vs {expected}"
     );
 }

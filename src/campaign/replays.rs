@@ -274,7 +274,7 @@ mod tests {
         let pair = build_builtin(builtin_by_name("cross").unwrap(), 1e-3).unwrap();
         let record = |success: bool| {
             let mut r = errored_trial(
-                &pair,
+                (&pair, 7),
                 &WorkCellParams::default(),
                 &TrialConfig::default(),
                 1,

@@ -210,6 +210,7 @@ impl PegEnv {
     pub fn reset(&mut self, seed: u64) -> Result<([f64; OBSERVATION_LEN], StepInfo)> {
         let setup = Setup::draw(
             &self.pair,
+            self.robot.joints.len(),
             &self.params,
             &self.trial,
             TrialSeeds { trial: seed },

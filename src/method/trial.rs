@@ -112,7 +112,8 @@ impl ObservingTrial {
     ) -> Result<ObservingTrial> {
         config.ensure_valid()?;
         let started = Instant::now();
-        let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
+        let seeds = TrialSeeds { trial: seed };
+        let setup = Setup::draw(pair, robot.joints.len(), params, config, seeds);
         let mut cell = setup.cell(pair, robot, params, config)?;
         // A reborrow for the session's shorter life (the cell is younger than the recorder).
         let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
@@ -344,8 +345,10 @@ pub(crate) struct Setup {
 }
 
 impl Setup {
+    /// The set-up of trial `seeds` of `pair`, its arm of `joints` joints in the cell `params`.
     pub(crate) fn draw(
         pair: &PartPair,
+        joints: usize,
         params: &WorkCellParams,
         config: &TrialConfig,
         seeds: TrialSeeds,
@@ -357,7 +360,7 @@ impl Setup {
             offset,
             truth: nominal * offset.to_iso(),
             seeds,
-            draw: params.cell.draw(seeds.sensors()),
+            draw: params.cell.draw(seeds.sensors(), joints),
         }
     }
 
@@ -509,15 +512,15 @@ impl Setup {
 }
 
 /// The record of a trial that raised an error or panicked with `message`: what its setup
-/// decides (seed, pair, offset), outcome `error`.
+/// decides (seed, pair, offset, the cell's draw for an arm of `joints` joints), outcome `error`.
 pub fn errored_trial(
-    pair: &PartPair,
+    (pair, joints): (&PartPair, usize),
     params: &WorkCellParams,
     config: &TrialConfig,
     seed: u64,
     message: String,
 ) -> TrialResult {
-    let setup = Setup::draw(pair, params, config, TrialSeeds { trial: seed });
+    let setup = Setup::draw(pair, joints, params, config, TrialSeeds { trial: seed });
     TrialResult {
         outcome: "error".into(),
         error_message: Some(message),

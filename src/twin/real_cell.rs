@@ -13,6 +13,7 @@
 
 use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
+use crate::twin::sensing::MAX_ENCODER_OFFSET_RAD;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -68,6 +69,10 @@ pub struct RealCell {
     /// Time from a control cycle's measurements to its torques at the drives, s (a whole number
     /// of control periods).
     pub latency_s: f64,
+    /// Half-range of each joint encoder's constant offset, rad: the kinematic calibration error
+    /// the controller and every recorded pose carry. 0 by default: its scale is what `calibrate`
+    /// fits to the paper's x, y error (docs/sources.md, 6.6).
+    pub encoder_offset_rad: f64,
 }
 
 impl Default for RealCell {
@@ -83,6 +88,7 @@ impl Default for RealCell {
             wrench_gain: [0.9, 1.1],
             payload_error: [-0.1, 0.1],
             latency_s: 0.001,
+            encoder_offset_rad: 0.0,
         }
     }
 }
@@ -106,6 +112,9 @@ pub struct CellDraw {
     pub wrench_gain: f64,
     /// The controller's peg mass over the true one, minus one.
     pub payload_error: f64,
+    /// Each joint encoder's constant offset, rad (absent: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub encoder_offset_rad: Vec<f64>,
 }
 
 impl RealCell {
@@ -122,9 +131,11 @@ impl RealCell {
         self.profile == Profile::Ideal
     }
 
-    /// The draw of the cell seeded `seed` (`None`: the ideal cell draws nothing). Each value has
-    /// its place in one ChaCha8 stream, in the order of [`CellDraw`]'s fields.
-    pub fn draw(&self, seed: u64) -> Option<CellDraw> {
+    /// The draw of the cell of an arm of `joints` joints seeded `seed` (`None`: the ideal cell
+    /// draws nothing). Each value has its place in one ChaCha8 stream, in the order of
+    /// [`CellDraw`]'s fields; the encoder offsets come last, one per joint, and only when their
+    /// range is not zero.
+    pub fn draw(&self, seed: u64, joints: usize) -> Option<CellDraw> {
         if self.is_ideal() {
             return None;
         }
@@ -135,13 +146,21 @@ impl RealCell {
         let static_friction = contact_friction * within(self.static_over_kinetic);
         let [force, torque] = self.wrench_bias;
         let wrench_bias = [force, force, force, torque, torque, torque].map(|h| within([-h, h]));
+        let wrench_gain = within(self.wrench_gain);
+        let payload_error = within(self.payload_error);
+        let h = self.encoder_offset_rad;
+        let encoder_offset_rad = match h > 0.0 {
+            true => (0..joints).map(|_| within([-h, h])).collect(),
+            false => Vec::new(),
+        };
         Some(CellDraw {
             joint_friction_scale,
             contact_friction,
             static_friction,
             wrench_bias,
-            wrench_gain: within(self.wrench_gain),
-            payload_error: within(self.payload_error),
+            wrench_gain,
+            payload_error,
+            encoder_offset_rad,
         })
     }
 
@@ -185,6 +204,13 @@ impl RealCell {
                  {most_f} N and {most_t} N m"
             )));
         }
+        if !(0.0..=MAX_ENCODER_OFFSET_RAD).contains(&self.encoder_offset_rad) {
+            return Err(Error::Input(format!(
+                "cell.encoder_offset_rad = {:?}: expected a half-range of 0 to \
+                 {MAX_ENCODER_OFFSET_RAD} rad",
+                self.encoder_offset_rad
+            )));
+        }
         if !(0.0..=crate::twin::control::MAX_LATENCY_S).contains(&self.latency_s) {
             return Err(Error::Input(format!(
                 "cell.latency_s = {:?}: expected 0 to {} s",
@@ -206,16 +232,16 @@ mod tests {
 
     #[test]
     fn the_ideal_cell_draws_nothing_and_the_real_one_draws_within_its_ranges() {
-        assert_eq!(RealCell::ideal().draw(3), None);
+        assert_eq!(RealCell::ideal().draw(3, 7), None);
         let real = RealCell {
             static_over_kinetic: [1.0, 1.5],
             ..RealCell::default()
         };
         for seed in 0..200 {
-            let d = real.draw(seed).unwrap();
+            let d = real.draw(seed, 7).unwrap();
             assert_eq!(
                 Some(&d),
-                real.draw(seed).as_ref(),
+                real.draw(seed, 7).as_ref(),
                 "the same seed, the same draw"
             );
             assert!((0.5..=2.0).contains(&d.joint_friction_scale));
@@ -226,8 +252,24 @@ mod tests {
             assert!(d.wrench_bias[3..].iter().all(|b| b.abs() <= 0.1));
             assert!((0.9..=1.1).contains(&d.wrench_gain));
             assert!((-0.1..=0.1).contains(&d.payload_error));
+            assert!(d.encoder_offset_rad.is_empty(), "none by default");
         }
-        assert_ne!(real.draw(1), real.draw(2));
+        assert_ne!(real.draw(1, 7), real.draw(2, 7));
+        // Offsets come last: turning them on leaves every other value of the draw as it was.
+        let offsets = RealCell {
+            encoder_offset_rad: 1e-4,
+            ..real.clone()
+        };
+        let (a, b) = (real.draw(5, 6).unwrap(), offsets.draw(5, 6).unwrap());
+        assert_eq!(b.encoder_offset_rad.len(), 6);
+        assert!(b.encoder_offset_rad.iter().all(|o| o.abs() <= 1e-4));
+        assert_eq!(
+            CellDraw {
+                encoder_offset_rad: Vec::new(),
+                ..b
+            },
+            a
+        );
     }
 
     #[test]
@@ -237,7 +279,7 @@ mod tests {
             payload_error: [0.0, 0.0],
             ..RealCell::default()
         };
-        let d = real.draw(9).unwrap();
+        let d = real.draw(9, 7).unwrap();
         assert_eq!(d.contact_friction, 0.3);
         assert_eq!(d.payload_error, 0.0);
     }

@@ -61,6 +61,10 @@ pub struct SensorParams {
     /// Gain of the reported wrench (1: none).
     #[serde(skip_serializing_if = "is_one")]
     pub wrench_gain: f64,
+    /// Each encoder's constant offset, rad (a kinematic calibration error: the controller and
+    /// every recorded pose see the joint this much off); empty: none, else one per joint.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub encoder_offset_rad: Vec<f64>,
 }
 
 fn is_zero(v: &[f64; 6]) -> bool {
@@ -73,6 +77,8 @@ fn is_one(v: &f64) -> bool {
 
 /// Largest bias of the reported wrench accepted: force (N) and torque (N m).
 pub const MAX_WRENCH_BIAS: (f64, f64) = (50.0, 10.0);
+/// Largest encoder offset accepted, rad (0.57 deg: a unit error beyond).
+pub const MAX_ENCODER_OFFSET_RAD: f64 = 0.01;
 /// Accepted gains of the reported wrench.
 pub const WRENCH_GAIN_RANGE: (f64, f64) = (0.5, 2.0);
 
@@ -90,6 +96,7 @@ impl Default for SensorParams {
             contact_off_n: 3.0,
             wrench_bias: [0.0; 6],
             wrench_gain: 1.0,
+            encoder_offset_rad: Vec::new(),
         }
     }
 }
@@ -149,6 +156,14 @@ impl SensorParams {
                 )));
             }
         }
+        if let Some((i, o)) = (self.encoder_offset_rad.iter().enumerate())
+            .find(|(_, o)| o.is_nan() || o.abs() > MAX_ENCODER_OFFSET_RAD)
+        {
+            return Err(Error::Input(format!(
+                "sensor encoder_offset_rad[{i}] is {o:?}: expected at most {} rad either way",
+                MAX_ENCODER_OFFSET_RAD
+            )));
+        }
         if !(self.contact_off_n >= 0.0 && self.contact_off_n <= self.contact_on_n) {
             return Err(Error::Input(format!(
                 "sensor contact_off_n is {}: expected a value between 0 and contact_on_n ({})",
@@ -184,6 +199,12 @@ pub struct Sensors {
 impl Sensors {
     pub fn new(params: SensorParams, dof: usize, seed: u64) -> Result<Self> {
         params.ensure_valid()?;
+        let offsets = params.encoder_offset_rad.len();
+        if offsets != 0 && offsets != dof {
+            return Err(Error::Input(format!(
+                "sensor encoder_offset_rad: {offsets} values for an arm of {dof} joints"
+            )));
+        }
         Ok(Sensors {
             params,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -207,12 +228,17 @@ impl Sensors {
         }
     }
 
-    /// Encoder reading of true joint positions `q`, rad.
+    /// Encoder reading of true joint positions `q`, rad: off by the encoder's offset,
+    /// quantised, with noise.
     pub fn read_q(&mut self, q: &[f64]) -> Vec<f64> {
         let res = self.params.encoder_resolution_rad;
         let sigma = self.params.encoder_noise_rad;
-        q.iter()
-            .map(|&v| {
+        let seen: Vec<f64> = match self.params.encoder_offset_rad.as_slice() {
+            [] => q.to_vec(),
+            offsets => q.iter().zip(offsets).map(|(v, o)| v + o).collect(),
+        };
+        seen.into_iter()
+            .map(|v| {
                 let quantised = if res > 0.0 {
                     (v / res).round() * res
                 } else {

@@ -459,9 +459,10 @@ pub fn run_one_recorded(
 
 /// The record of trial `spec` that could not run: `message` says why.
 fn errored(plan: &Plan, spec: &TrialSpec, message: String) -> TrialResult {
-    let (pair, _, _) = plan.inputs(spec.cell);
+    let (pair, robot, _) = plan.inputs(spec.cell);
     let PlannedCell { params, config, .. } = plan.cell(spec.cell);
-    errored_trial(pair, params, config, spec.seed, message)
+    let arm = (pair, robot.joints.len());
+    errored_trial(arm, params, config, spec.seed, message)
 }
 
 /// The message of a panic's payload (a `&str` or a `String`, as `panic!` makes them).

@@ -67,7 +67,7 @@ impl WorkCell {
     ) -> Result<WorkCell> {
         params.ensure_valid()?;
         let file_friction: Vec<f64> = robot.joints.iter().map(|j| j.friction).collect();
-        let draw = params.cell.draw(seed);
+        let draw = params.cell.draw(seed, robot.joints.len());
         let drawn = match &draw {
             Some(d) => drawn_params(params, d, &file_friction),
             None => params.clone(),
@@ -270,6 +270,9 @@ fn drawn_params(
         *b += d;
     }
     s.wrench_gain *= draw.wrench_gain;
+    if !draw.encoder_offset_rad.is_empty() {
+        s.encoder_offset_rad = draw.encoder_offset_rad.clone();
+    }
     p.controller.latency_s = params.cell.latency_s;
     p
 }
