@@ -7,7 +7,9 @@ use crate::twin::energy::EnergyLedger;
 use crate::twin::geometry::PartPair;
 use crate::twin::physics::arm::Arm;
 use crate::twin::physics::penetration::PenetrationProbe;
-use crate::twin::physics::{ArmContacts, add_fixed, compound_collider, fork_world, v64};
+use crate::twin::physics::{
+    ArmContacts, FrictionLaw, add_fixed, compound_collider, fork_world, v64,
+};
 use crate::twin::real_cell::CellDraw;
 use crate::twin::robot::{Inertial, Iso, RobotModel, Tool};
 use crate::twin::sensing::Sensors;
@@ -66,31 +68,17 @@ impl WorkCell {
         seed: u64,
     ) -> Result<WorkCell> {
         params.ensure_valid()?;
-        let file_friction: Vec<f64> = robot.joints.iter().map(|j| j.friction).collect();
-        let draw = params.cell.draw(seed, robot.joints.len());
-        let drawn = match &draw {
-            Some(d) => drawn_params(params, d, &file_friction),
-            None => params.clone(),
-        };
-        let params = &drawn;
-        params.ensure_valid()?;
+        let Realised {
+            params,
+            draw,
+            joint_friction,
+            believed,
+        } = realise(pair, &robot, params, seed)?;
+        let params = &params;
         let steps_per_cycle = steps_per_control_cycle(params)?;
         let dt = params.physics.dt_s;
         let friction = params.physics.friction;
-        // The ideal cell's joints are frictionless whatever the robot file says.
-        let file_friction = match draw {
-            Some(_) => file_friction,
-            None => vec![0.0; file_friction.len()],
-        };
-        let joint_friction = params.physics.joint_friction.resolve(&file_friction)?;
         let tcp_on_flange = flange_t_tcp(pair);
-        let payload_error = draw.as_ref().map_or(0.0, |d| d.payload_error);
-        let believed = with_peg_of_mass(
-            robot.clone(),
-            pair,
-            peg_mass_kg(pair, params) * (1.0 + payload_error),
-            params,
-        );
         let model = with_peg(robot, pair, params)?;
         let q0 = model.start_configuration(start_tcp)?;
 
@@ -146,16 +134,65 @@ impl WorkCell {
             contact_friction: params.physics.contact_friction(),
             joint_friction,
         };
-        // Start holding the arm: the task torque is zero at the target, gravity is compensated.
-        let k = cell.believed.kinematics(&q0);
-        cell.tau = cell
-            .believed
-            .gravity_torques(&k, &Vector3::from(params.controller.gravity));
-        cell.tau_link = cell.tau.clone();
-        let latency = params.controller.latency_cycles()?;
-        cell.in_flight = std::iter::repeat_n(cell.tau.clone(), latency).collect();
+        cell.hold(&q0, params)?;
         Ok(cell)
     }
+
+    /// Starts holding the arm at `q0`: the task torque is zero at the target and gravity is
+    /// compensated (as the controller believes it), those torques also in flight through the
+    /// latency.
+    fn hold(&mut self, q0: &[f64], params: &WorkCellParams) -> Result<()> {
+        let k = self.believed.kinematics(q0);
+        let gravity = Vector3::from(params.controller.gravity);
+        self.tau = self.believed.gravity_torques(&k, &gravity);
+        self.tau_link = self.tau.clone();
+        let latency = params.controller.latency_cycles()?;
+        self.in_flight = std::iter::repeat_n(self.tau.clone(), latency).collect();
+        Ok(())
+    }
+}
+
+/// What a cell's draw makes of its parameters ([`realise`]).
+struct Realised {
+    /// The parameters the cell runs under.
+    params: WorkCellParams,
+    draw: Option<CellDraw>,
+    /// The joints' friction (`None`: frictionless).
+    joint_friction: Option<FrictionLaw>,
+    /// The model the controller and the estimator use.
+    believed: RobotModel,
+}
+
+/// The cell of `robot` carrying the peg of `pair` under `params`, as its draw from `seed` makes
+/// it: on the real cell the drawn parameters, the robot file's joint friction scaled, and the peg
+/// mass the controller believes; on the ideal one `params` as they are, frictionless joints
+/// whatever the robot file says, and the true peg mass.
+fn realise(
+    pair: &PartPair,
+    robot: &RobotModel,
+    params: &WorkCellParams,
+    seed: u64,
+) -> Result<Realised> {
+    let file_friction: Vec<f64> = robot.joints.iter().map(|j| j.friction).collect();
+    let draw = params.cell.draw(seed, robot.joints.len());
+    let (params, file_friction, payload_error) = match &draw {
+        Some(d) => (
+            drawn_params(params, d, &file_friction),
+            file_friction,
+            d.payload_error,
+        ),
+        None => (params.clone(), vec![0.0; file_friction.len()], 0.0),
+    };
+    params.ensure_valid()?;
+    let joint_friction = params.physics.joint_friction.resolve(&file_friction)?;
+    let believed_mass_kg = peg_mass_kg(pair, &params) * (1.0 + payload_error);
+    let believed = with_peg_of_mass(robot.clone(), pair, believed_mass_kg, &params);
+    Ok(Realised {
+        params,
+        draw,
+        joint_friction,
+        believed,
+    })
 }
 
 /// The cell's rapier world: the table, the hole's fixture at `base_t_hole` (none: free space),
