@@ -4,6 +4,7 @@ use super::ValidateArgs;
 use pegtwin::error::Result;
 use pegtwin::method::config::TrialConfig;
 use pegtwin::method::manifold::build::SamplerConfig;
+use pegtwin::selfcheck::Verdict;
 use pegtwin::selfcheck::arm::{ArmValidationReport, validate_arm};
 use pegtwin::selfcheck::free_peg::{FreePegGains, ValidationReport, validate};
 use pegtwin::twin::physics::{ArmContacts, PhysicsParams};
@@ -83,15 +84,7 @@ fn print_arm_validation(r: &ArmValidationReport) {
             v.steps_per_s,
             c.gains
         );
-        let required = if v.outcome_required {
-            ""
-        } else {
-            " (an ideal arm's; on the real cell, reported only)"
-        };
-        println!(
-            "     expected{required}: {}\n     observed: {}",
-            v.expected, v.observed
-        );
+        print_expected_and_observed(v);
         if let Some(f) = &c.fault {
             println!("     sim_fault at {:.3} s: {}", f.time_s, f.reason);
         }
@@ -104,6 +97,19 @@ fn print_arm_validation(r: &ArmValidationReport) {
         println!("SOME CASES FAULTED OR PENETRATED PAST THE LIMIT");
     }
 }
+/// A case's expected and observed outcomes, the expected one marked when it is only reported
+/// (an ideal arm's, on the real cell).
+fn print_expected_and_observed(v: &Verdict) {
+    let reported_only = match v.outcome_required {
+        true => "",
+        false => " (an ideal arm's; on the real cell, reported only)",
+    };
+    println!(
+        "     expected{reported_only}: {}\n     observed: {}",
+        v.expected, v.observed
+    );
+}
+
 fn print_validation(r: &ValidationReport) {
     println!(
         "validate {} at {} mm clearance (penetration limit {:.4} mm; step {} ms)",
@@ -125,15 +131,7 @@ fn print_validation(r: &ValidationReport) {
             c.force_error_pct,
             v.steps_per_s
         );
-        let required = if v.outcome_required {
-            ""
-        } else {
-            " (an ideal arm's; on the real cell, reported only)"
-        };
-        println!(
-            "     expected{required}: {}\n     observed: {}",
-            v.expected, v.observed
-        );
+        print_expected_and_observed(v);
     }
     println!("{}", verdict(r.passed));
 }

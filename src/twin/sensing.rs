@@ -219,13 +219,7 @@ impl Sensors {
     }
 
     fn gaussian(&mut self, sigma: f64) -> f64 {
-        if sigma > 0.0 {
-            Normal::new(0.0, sigma)
-                .expect("sigma > 0")
-                .sample(&mut self.rng)
-        } else {
-            0.0
-        }
+        gaussian(&mut self.rng, sigma)
     }
 
     /// Encoder reading of true joint positions `q`, rad: off by the encoder's offset,
@@ -233,18 +227,17 @@ impl Sensors {
     pub fn read_q(&mut self, q: &[f64]) -> Vec<f64> {
         let res = self.params.encoder_resolution_rad;
         let sigma = self.params.encoder_noise_rad;
-        let seen: Vec<f64> = match self.params.encoder_offset_rad.as_slice() {
-            [] => q.to_vec(),
-            offsets => q.iter().zip(offsets).map(|(v, o)| v + o).collect(),
-        };
-        seen.into_iter()
-            .map(|v| {
+        let (offsets, rng) = (&self.params.encoder_offset_rad, &mut self.rng);
+        q.iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let v = offsets.get(i).map_or(v, |o| v + o);
                 let quantised = if res > 0.0 {
                     (v / res).round() * res
                 } else {
                     v
                 };
-                quantised + self.gaussian(sigma)
+                quantised + gaussian(rng, sigma)
             })
             .collect()
     }
@@ -285,6 +278,15 @@ impl Sensors {
         } else if !self.contact && force > self.params.contact_on_n {
             self.contact = true;
         }
+    }
+}
+
+/// A sample of zero-mean Gaussian noise of standard deviation `sigma` (none at 0).
+fn gaussian(rng: &mut ChaCha8Rng, sigma: f64) -> f64 {
+    if sigma > 0.0 {
+        Normal::new(0.0, sigma).expect("sigma > 0").sample(rng)
+    } else {
+        0.0
     }
 }
 

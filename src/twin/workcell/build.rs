@@ -163,8 +163,8 @@ struct Realised {
     believed: RobotModel,
 }
 
-/// The cell of `robot` carrying the peg of `pair` under `params`, as its draw from `seed` makes
-/// it: on the real cell the drawn parameters, the robot file's joint friction scaled, and the peg
+/// The cell of `robot` carrying the peg of `pair` under `params` (valid), as its draw from
+/// `seed` makes it: on the real cell the drawn parameters, the robot file's joint friction scaled, and the peg
 /// mass the controller believes; on the ideal one `params` as they are, frictionless joints
 /// whatever the robot file says, and the true peg mass.
 fn realise(
@@ -176,14 +176,13 @@ fn realise(
     let file_friction: Vec<f64> = robot.joints.iter().map(|j| j.friction).collect();
     let draw = params.cell.draw(seed, robot.joints.len());
     let (params, file_friction, payload_error) = match &draw {
-        Some(d) => (
-            drawn_params(params, d, &file_friction),
-            file_friction,
-            d.payload_error,
-        ),
+        Some(d) => {
+            let drawn = drawn_params(params, d, &file_friction);
+            drawn.ensure_valid()?;
+            (drawn, file_friction, d.payload_error)
+        }
         None => (params.clone(), vec![0.0; file_friction.len()], 0.0),
     };
-    params.ensure_valid()?;
     let joint_friction = params.physics.joint_friction.resolve(&file_friction)?;
     let believed_mass_kg = peg_mass_kg(pair, &params) * (1.0 + payload_error);
     let believed = with_peg_of_mass(robot.clone(), pair, believed_mass_kg, &params);
