@@ -507,6 +507,7 @@ impl Scenario {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::twin::real_cell::Profile;
 
     const MINIMAL: &str = r#"
 name = "t"
@@ -719,6 +720,20 @@ friction = 0.2
         );
         let e = Scenario::parse(&bad).unwrap_err().to_string();
         assert!(e.contains("joint_friction.coulomb_nm[0]"), "{e}");
+    }
+
+    #[test]
+    fn cell_errors_name_the_field() {
+        for (line, field) in [
+            ("profile = \"nope\"", "unknown variant `nope`"),
+            ("contact_friction = [0.9, 0.1]", "cell.contact_friction"),
+            ("latency_s = 0.0015", "cell.latency_s"),
+            ("encoder_offset_rad = 1", "cell.encoder_offset_rad"),
+        ] {
+            let e = Scenario::parse(&format!("{MINIMAL}\n[cell]\n{line}\n")).unwrap_err();
+            assert!(e.to_string().contains(field), "{line}: {e}");
+        }
+        assert!(Scenario::parse(MINIMAL).unwrap().cell.profile == Profile::Real);
     }
 
     #[test]

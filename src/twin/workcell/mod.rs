@@ -106,7 +106,8 @@ impl WorkCellParams {
                 latency_s: self.cell.latency_s,
                 ..self.controller.clone()
             }
-            .latency_cycles()?;
+            .latency_cycles()
+            .map_err(|e| Error::Input(format!("cell.latency_s: {e}")))?;
         }
         self.sensors
             .ensure_valid()
