@@ -119,6 +119,9 @@ fn a_trial_on_the_exported_cross_goes_as_on_the_builtin() {
         request.pair = pair;
         request.method = pegtwin::method::config::Method::Direct;
         request.seed = 3;
+        // The ideal cell: the real one prints the built-in (its walls and edges off the CAD),
+        // while an assembly's files are its parts as they are.
+        request.profile = pegtwin::twin::real_cell::Profile::Ideal;
         request.run(&()).unwrap()
     };
     let mine = run(PairSource::Assembly(file));

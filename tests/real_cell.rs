@@ -30,6 +30,8 @@ fn real(edit: impl FnOnce(&mut RealCell)) -> RealCell {
         payload_error: [0.0, 0.0],
         latency_s: 0.0,
         encoder_offset_rad: 0.0,
+        print_deviation_m: [0.0, 0.0],
+        edge_bevel_m: [0.3e-3, 0.3e-3],
     };
     edit(&mut cell);
     cell

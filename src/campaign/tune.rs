@@ -14,8 +14,8 @@
 //! Ranges (within KUKA Sunrise's: 0-5000 N/m, 0-300 N m/rad, damping 0.1-1.0): observation
 //! translational stiffness 300-3000 N/m (x, y; z 1.5 x), rotational 2-50 N m/rad, damping 0.3-1.0;
 //! insertion translational 300-5000 N/m (x, y; z 2000 N/m kept), rotational 10-300 N m/rad,
-//! damping 0.3-1.0. The direct target's are in `DIRECT_AXES`. Stiffnesses and forces are drawn
-//! log-uniformly.
+//! damping 0.3-1.0. The direct target's are in `DIRECT_AXES`, the method's insertion target's in
+//! `INSERTION_AXES`. Stiffnesses and forces are drawn log-uniformly.
 
 use crate::campaign::records::TrialRecord;
 use crate::campaign::run::{Plan, Prepared, RunOptions, all_trials, prepare, run_trials};
@@ -42,6 +42,11 @@ pub enum TuneTarget {
     /// for higher success", V-B): its insertion stiffness and damping and its seat force
     /// (`[direct.gains.insert]`, `[direct.insertion]`); only the scenario's direct cells run.
     Direct,
+    /// The manifold method's insertion alone (paper IV-E: "optimized compliance parameters"), with
+    /// the observation's gains kept: its stiffness (z included), damping, overshoot past the
+    /// believed floor and seat force (`[gains.insert]`, `[insertion]`); only the scenario's
+    /// manifold cells run.
+    Insertion,
 }
 
 impl Choice for TuneTarget {
@@ -56,6 +61,11 @@ impl Choice for TuneTarget {
             name: "direct",
             value: TuneTarget::Direct,
             help: "the direct baseline's insertion: stiffness, damping and seat force (the paper tuned it)",
+        },
+        Named {
+            name: "insertion",
+            value: TuneTarget::Insertion,
+            help: "the manifold method's insertion: stiffness (z too), damping, overshoot and seat force",
         },
     ];
 }
@@ -96,11 +106,34 @@ const DIRECT_AXES: [Axis; 5] = [
     axis("seat_force_n", 3.0, 40.0, true),
 ];
 
+/// [`TuneTarget::Insertion`]: insertion x, y and z stiffness (N/m), rotational (N m/rad),
+/// damping, how far the target goes past the believed floor (mm: the compliance turns it into
+/// the push that carries the peg past friction; the registration's z error is about 2 mm) and the
+/// seat force (N).
+const INSERTION_AXES: [Axis; 6] = [
+    axis("insert_n_per_m", 300.0, 5000.0, true),
+    axis("insert_z_n_per_m", 500.0, 5000.0, true),
+    axis("insert_nm_per_rad", 5.0, 300.0, true),
+    axis("insert_damping", 0.3, 1.0, false),
+    axis("overshoot_mm", 2.0, 15.0, false),
+    axis("seat_force_n", 3.0, 40.0, true),
+];
+
 impl TuneTarget {
     fn axes(self) -> &'static [Axis] {
         match self {
             TuneTarget::Gains => &GAINS_AXES,
             TuneTarget::Direct => &DIRECT_AXES,
+            TuneTarget::Insertion => &INSERTION_AXES,
+        }
+    }
+
+    /// The one method whose cells the target runs, if it runs one only.
+    pub fn only_method(self) -> Option<Method> {
+        match self {
+            TuneTarget::Gains => None,
+            TuneTarget::Direct => Some(Method::Direct),
+            TuneTarget::Insertion => Some(Method::Manifold),
         }
     }
 }
@@ -255,6 +288,18 @@ impl Candidate {
                 );
                 s.direct.insertion.seat_force_n = Some(v("seat_force_n"));
             }
+            TuneTarget::Insertion => {
+                s.methods = vec![Method::Manifold];
+                set_gains(
+                    &mut s.gains.insert,
+                    v("insert_n_per_m"),
+                    v("insert_z_n_per_m"),
+                    v("insert_nm_per_rad"),
+                    v("insert_damping"),
+                );
+                s.insertion.overshoot_mm = Some(v("overshoot_mm"));
+                s.insertion.seat_force_n = Some(v("seat_force_n"));
+            }
         }
         s
     }
@@ -271,6 +316,12 @@ impl Candidate {
             TuneTarget::Direct => format!(
                 "{}\n[direct.insertion]\nseat_force_n = {:.1}\n",
                 gains_toml("direct.gains.insert", &s.direct.gains.insert),
+                self.get("seat_force_n")
+            ),
+            TuneTarget::Insertion => format!(
+                "{}\n[insertion]\novershoot_mm = {:.1}\nseat_force_n = {:.1}\n",
+                gains_toml("gains.insert", &s.gains.insert),
+                self.get("overshoot_mm"),
                 self.get("seat_force_n")
             ),
         }
@@ -336,10 +387,14 @@ pub fn tune(
             "tune: expected at least 1 candidate and 1 trial per cell".into(),
         ));
     }
-    if options.target == TuneTarget::Direct && !scenario.methods.contains(&Method::Direct) {
-        return Err(Error::Input(
-            "tune --target direct: the scenario has no direct cells (methods)".into(),
-        ));
+    if let Some(method) = options.target.only_method()
+        && !scenario.methods.contains(&method)
+    {
+        return Err(Error::Input(format!(
+            "tune --target {}: the scenario has no {} cells (methods)",
+            options.target.name(),
+            method.name()
+        )));
     }
     let probe = candidates(1, options.seed, options.target)[0].apply(scenario);
     let prepared = prepare(&probe, &all_trials(&probe), run)?;
@@ -431,6 +486,17 @@ mod tests {
             let seat = snippet.direct.insertion.seat_force_n.unwrap();
             assert!((seat - c.get("seat_force_n")).abs() < 0.051, "{seat}");
             assert_eq!(snippet.gains, scenario.gains, "the method's gains stay");
+        }
+        for c in candidates(20, 1, TuneTarget::Insertion) {
+            let tuned = c.apply(&scenario);
+            tuned.ensure_valid().unwrap();
+            assert_eq!(tuned.methods, vec![Method::Manifold]);
+            let snippet = Scenario::parse(&format!("{base}{}", c.snippet(&scenario))).unwrap();
+            let over = snippet.insertion.overshoot_mm.unwrap();
+            assert!((over - c.get("overshoot_mm")).abs() < 0.051, "{over}");
+            let z = snippet.gains.insert.stiffness.unwrap()[2];
+            assert!((z - c.get("insert_z_n_per_m")).abs() < 0.51, "{z}");
+            assert_eq!(snippet.gains.observe, scenario.gains.observe);
         }
     }
 }

@@ -222,11 +222,11 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
         seed: args.seed,
         target: args.target,
     };
-    let direct_only = args.target == TuneTarget::Direct;
+    let only = args.target.only_method();
     let cells = scenario
         .cells()
         .iter()
-        .filter(|c| !direct_only || c.method == pegtwin::method::config::Method::Direct)
+        .filter(|c| only.is_none_or(|m| c.method == m))
         .count();
     let evals = campaign::worker_pool(args.threads)?.install(|| {
         tune(&scenario, &options, &run, &|rung, n, trials| {

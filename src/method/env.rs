@@ -166,6 +166,10 @@ struct Episode {
     stiffness: [f64; 6],
 }
 
+/// The seed an environment's pair is printed from on the real cell: an environment is one cell
+/// with one printed pair, whatever its episodes' seeds ([`crate::twin::real_cell::RealCell::print`]).
+pub const ENV_PRINT_SEED: u64 = 1;
+
 /// The environment over one part pair.
 pub struct PegEnv {
     pair: PartPair,
@@ -185,6 +189,7 @@ impl PegEnv {
         config: EnvConfig,
     ) -> Result<Self> {
         config.ensure_valid(&params)?;
+        let pair = params.cell.printed(ENV_PRINT_SEED, pair)?;
         let trial = TrialConfig {
             start: config.start,
             offset_range: config.offset_range,

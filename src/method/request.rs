@@ -104,6 +104,7 @@ impl TrialRequest {
         let (robot, _warnings) = spec.load()?;
         let mut params = WorkCellParams::default().placed_for(&spec);
         params.cell.profile = self.profile;
+        let pair = params.cell.printed(self.seed, pair)?;
         let manifold = match self.method {
             Method::Manifold => Some(self.reference_manifold(&pair, &robot, &params, progress)?),
             Method::Direct => None,

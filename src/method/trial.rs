@@ -22,6 +22,7 @@ use crate::method::seeds::TrialSeeds;
 use crate::method::session::{Phase, Recorder, Session};
 use crate::pose::{Iso, Pose6};
 use crate::twin::geometry::PartPair;
+use crate::twin::geometry::Print;
 use crate::twin::real_cell::CellDraw;
 use crate::twin::robot::RobotModel;
 use crate::twin::workcell::{SimFault, WorkCell, WorkCellParams, nominal_hole_pose, tcp_in_hole};
@@ -298,6 +299,9 @@ pub struct TrialResult {
     /// What the trial's cell drew of the real cell's imperfections (absent: the ideal cell).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub real_cell: Option<CellDraw>,
+    /// How the pair was printed, its measured clearance included (absent: as its CAD says).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub print: Option<Print>,
     /// `success`, `failure`, `sim_fault`, or `error` (the trial could not run to its end:
     /// `error_message` says why).
     pub outcome: String,
@@ -453,6 +457,7 @@ impl Setup {
             t_obs_s: config.t_obs_s,
             offset: self.offset.to_mm_deg(),
             real_cell: self.draw.clone(),
+            print: pair.print,
             outcome: outcome(fault.is_some(), false).into(),
             stopped: None,
             success: false,

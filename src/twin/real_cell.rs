@@ -10,9 +10,14 @@
 //! A cell draws from its own seed ([`RealCell::draw`]): every trial from its trial seed, every
 //! sampling episode of a reference manifold from its episode seed, so a trial's draw is fixed by
 //! its seed alone, is recorded in its record ([`CellDraw`]) and comes back with `rerun`.
+//!
+//! A built-in pair is printed once ([`RealCell::print`]): its walls' deviation and its edges are
+//! drawn from the scenario's seed (a lone trial's: its own) and the pair's name and clearance, so
+//! its reference manifold and every trial of it meet the same print (paper IV-B).
 
 use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
+use crate::twin::geometry::{self, Builtin, MIN_CHAMFER_M, PartPair, Print};
 use crate::twin::sensing::MAX_ENCODER_OFFSET_RAD;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -73,6 +78,12 @@ pub struct RealCell {
     /// the controller and every recorded pose carry. 0 by default: its scale is what `calibrate`
     /// fits to the paper's x, y error (docs/sources.md, 6.6).
     pub encoder_offset_rad: f64,
+    /// How far a printed wall stands off its CAD, m per side: the peg's walls out (outsides print
+    /// large) and the hole's in (holes print small), each drawn in this range once per pair.
+    pub print_deviation_m: Range,
+    /// The printed pair's tip and mouth edges, as 45-degree bevels of this size, m: each drawn
+    /// once per pair (the CAD's 0.3 mm chamfer and the print's rounding together).
+    pub edge_bevel_m: Range,
 }
 
 impl Default for RealCell {
@@ -89,6 +100,8 @@ impl Default for RealCell {
             payload_error: [-0.1, 0.1],
             latency_s: 0.001,
             encoder_offset_rad: 0.0,
+            print_deviation_m: [0.0, 12.5e-6],
+            edge_bevel_m: [0.3e-3, 0.5e-3],
         }
     }
 }
@@ -99,6 +112,10 @@ pub const MAX_JOINT_FRICTION_SCALE: f64 = 10.0;
 pub const MAX_CONTACT_FRICTION: f64 = 2.0;
 /// Largest relative payload error accepted.
 pub const MAX_PAYLOAD_ERROR: f64 = 0.5;
+/// Largest print deviation accepted, m per side (either way).
+pub const MAX_PRINT_DEVIATION_M: f64 = 0.5e-3;
+/// Largest edge bevel accepted, m.
+pub const MAX_EDGE_BEVEL_M: f64 = 2e-3;
 
 /// What one cell drew: the values its imperfections took (recorded in a trial's record).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -164,6 +181,36 @@ impl RealCell {
         })
     }
 
+    /// The print of the built-in `pair` (`None`: the ideal cell prints exactly). The peg's
+    /// growth, the hole's shrink and the two edges are drawn in that order from one ChaCha8
+    /// stream, seeded by `seed`, the pair's name and its clearance.
+    pub fn print(&self, seed: u64, pair: &PartPair) -> Option<Print> {
+        if self.is_ideal() {
+            return None;
+        }
+        let name = pair.name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        });
+        let stream = seed ^ PRINT_STREAM ^ name ^ pair.clearance_m.to_bits().rotate_left(17);
+        let mut rng = ChaCha8Rng::seed_from_u64(stream);
+        let mut within = |r: Range| r[0] + (r[1] - r[0]) * rng.random::<f64>();
+        let growth = within(self.print_deviation_m);
+        let shrink = within(self.print_deviation_m);
+        let edges = [within(self.edge_bevel_m), within(self.edge_bevel_m)];
+        Some(Print::new(pair.clearance_m, growth, shrink, edges))
+    }
+
+    /// `pair` as the real cell prints it from `seed` ([`RealCell::print`]): a built-in rebuilt
+    /// with its print; an assembly's or a mesh pair, whose files are the parts, as it is.
+    pub fn printed(&self, seed: u64, pair: PartPair) -> Result<PartPair> {
+        let builtin = Builtin::from_name(&pair.name)
+            .filter(|_| pair.content_key.is_none() && pair.print.is_none());
+        match (builtin, self.print(seed, &pair)) {
+            (Some(b), Some(print)) => geometry::build_printed(b, pair.clearance_m, Some(print)),
+            _ => Ok(pair),
+        }
+    }
+
     /// Refuses ranges outside what a cell can run with, naming the field.
     pub fn ensure_valid(&self) -> Result<()> {
         let ranges = [
@@ -186,6 +233,18 @@ impl RealCell {
                 self.payload_error,
                 -MAX_PAYLOAD_ERROR,
                 MAX_PAYLOAD_ERROR,
+            ),
+            (
+                "print_deviation_m",
+                self.print_deviation_m,
+                -MAX_PRINT_DEVIATION_M,
+                MAX_PRINT_DEVIATION_M,
+            ),
+            (
+                "edge_bevel_m",
+                self.edge_bevel_m,
+                MIN_CHAMFER_M,
+                MAX_EDGE_BEVEL_M,
             ),
         ];
         for (field, [lo, hi], least, most) in ranges {
@@ -225,6 +284,8 @@ impl RealCell {
 /// Mixed into a cell's seed for its draw ("cell"), so that the draw's stream differs from the
 /// sensors' (which the seed itself seeds).
 const CELL_STREAM: u64 = 0x6365_6c6c;
+/// Mixed into a pair's print seed ("print").
+const PRINT_STREAM: u64 = 0x70_7269_6e74;
 
 #[cfg(test)]
 mod tests {
@@ -319,5 +380,79 @@ mod tests {
             },
             "cell.latency_s",
         );
+        bad(
+            RealCell {
+                edge_bevel_m: [0.0, 0.3e-3],
+                ..RealCell::default()
+            },
+            "cell.edge_bevel_m",
+        );
+    }
+
+    #[test]
+    fn a_pair_is_printed_once_per_seed_and_measures_its_printed_clearance() {
+        use crate::twin::assembly::measure::measure_fit;
+        let exact = geometry::build_builtin(Builtin::Cross, 0.5e-3).unwrap();
+        let ideal = RealCell::ideal().printed(4, exact.clone()).unwrap();
+        assert_eq!(ideal.print, None);
+        let vertices = |p: &PartPair| -> Vec<_> {
+            (p.peg.pieces.iter().chain(&p.hole.pieces))
+                .flat_map(|c| c.vertices.clone())
+                .collect()
+        };
+        assert_eq!(
+            vertices(&ideal),
+            vertices(&exact),
+            "the ideal cell prints the CAD"
+        );
+        let as_cad = Print::exact(0.5e-3);
+        let cad = geometry::build_printed(Builtin::Cross, 0.5e-3, Some(as_cad)).unwrap();
+        assert_eq!(
+            vertices(&cad),
+            vertices(&exact),
+            "the exact print is the CAD"
+        );
+        let cell = RealCell {
+            print_deviation_m: [20e-6, 40e-6],
+            ..RealCell::default()
+        };
+        let a = cell.printed(4, exact.clone()).unwrap();
+        let b = cell.printed(4, exact.clone()).unwrap();
+        let print = a.print.expect("the real cell prints");
+        assert_eq!(a.print, b.print, "the same seed, the same print");
+        assert_eq!(a.content_key, Some(print.key()), "its manifold is its own");
+        assert_ne!(cell.printed(5, exact.clone()).unwrap().print, a.print);
+        assert!((20e-6..=40e-6).contains(&print.peg_growth_m));
+        assert!((20e-6..=40e-6).contains(&print.hole_shrink_m));
+        assert!((0.3e-3..=0.5e-3).contains(&print.peg_edge_m));
+        let lost = 2.0 * (print.peg_growth_m + print.hole_shrink_m);
+        assert!((print.clearance_m - (0.5e-3 - lost)).abs() < 1e-12);
+        let fit = measure_fit(&a.peg, &a.hole, 1e-3, (5e-3, 45e-3)).unwrap();
+        assert!(
+            (2.0 * fit.gap_min_m - print.clearance_m).abs() < 2e-6,
+            "measured {} m, printed {} m",
+            2.0 * fit.gap_min_m,
+            print.clearance_m
+        );
+        assert_eq!(
+            a.clearance_m, 0.5e-3,
+            "the nominal clearance names the pair"
+        );
+        assert_eq!(
+            cell.printed(4, a.clone()).unwrap().print,
+            a.print,
+            "printed once: a printed pair is not printed again"
+        );
+    }
+
+    #[test]
+    fn a_print_that_closes_the_gap_is_refused_by_name() {
+        let exact = geometry::build_builtin(Builtin::Cross, 0.1e-3).unwrap();
+        let cell = RealCell {
+            print_deviation_m: [40e-6, 40e-6],
+            ..RealCell::default()
+        };
+        let e = cell.printed(1, exact).unwrap_err().to_string();
+        assert!(e.contains("cell.print_deviation_m"), "{e}");
     }
 }

@@ -201,13 +201,16 @@ impl Scenario {
         Ok(())
     }
 
-    /// The pair a cell runs: a built-in at the cell's clearance, or an assembly by its name.
+    /// The pair a cell runs: a built-in at the cell's clearance (on the real cell, as printed
+    /// once from the scenario's seed: [`crate::twin::real_cell::RealCell::print`]), or an
+    /// assembly by its name.
     pub fn pair(&self, cell: &Condition) -> Result<PartPair> {
         if let Some(a) = self.assembly_of(cell) {
             return Ok(a.pair.clone());
         }
         let builtin = geometry::builtin_by_name(&cell.geometry)?;
-        geometry::build_builtin(builtin, cell.clearance_mm * 1e-3)
+        let exact = geometry::build_builtin(builtin, cell.clearance_mm * 1e-3)?;
+        self.cell.printed(self.seed, exact)
     }
 
     /// The robot a cell runs on: its assembly's, else the built-in iiwa 14.

@@ -201,6 +201,7 @@ pub fn load(path: &Path) -> Result<Assembly> {
         cavity_depth_m: insertion_depth_m,
         seat: fit.seat,
         peg_mass_kg: Some(peg_mass_kg),
+        print: None,
     };
     let robot_check = robot::check_reach(&robot, &pair, path)?;
     if let (Some(key), Some(robot_key)) = (pair.content_key.as_mut(), &robot_check.key) {

@@ -314,6 +314,7 @@ pub fn load_pair(
         seat: super::Seat::TipOnFloor,
         peg_mass_kg: None,
         content_key: None,
+        print: None,
     };
     Ok((pair, warnings))
 }

@@ -7,12 +7,14 @@
 
 pub mod mesh;
 pub mod planar;
+pub mod print;
 pub mod profile;
 pub mod solid;
 pub mod stack;
 
 use crate::error::{Error, Result};
 use planar::{P2, Region, difference, offset_left, rect, simplify_ring, union};
+pub use print::Print;
 pub use profile::Builtin;
 use solid::{BoundaryMesh, ConvexPiece, Solid, ZPlane, prisms};
 
@@ -83,8 +85,10 @@ pub struct PartPair {
     pub peg_mass_kg: Option<f64>,
     /// A checksum of what the pair was made from beyond its name and clearance (an assembly's
     /// mesh contents, frames and mass); `None` for built-ins, which those two decide. Cached
-    /// manifolds are keyed on it.
+    /// manifolds are keyed on it, and on a printed built-in's print.
     pub content_key: Option<String>,
+    /// How a built-in came out of the printer on the real cell (`None`: as its CAD says).
+    pub print: Option<Print>,
 }
 
 impl PartPair {
@@ -140,12 +144,31 @@ pub fn chord_tolerance(clearance_m: f64) -> f64 {
     clearance_m / 2.0 / 20.0
 }
 
-/// Builds a built-in pair at a clearance (metres).
+/// Builds a built-in pair at a clearance (metres), as its CAD says.
 pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
+    build_printed(builtin, clearance_m, None)
+}
+
+/// Builds a built-in pair at a nominal clearance (metres) as `print` came out (`None`: exact).
+/// The chord tolerance follows the printed clearance; a print that closes the gap below the
+/// least clearance pegtwin builds is refused.
+pub fn build_printed(builtin: Builtin, clearance_m: f64, print: Option<Print>) -> Result<PartPair> {
     check_clearance(clearance_m)?;
-    let tol = chord_tolerance(clearance_m);
+    let made = print.unwrap_or(Print::exact(clearance_m));
+    if made.clearance_m.is_nan() || made.clearance_m < CLEARANCE_RANGE_M.0 {
+        return Err(Error::Input(format!(
+            "{} at {} mm: the print (walls {:.4} mm out on the peg, {:.4} mm in on the hole) leaves              a clearance of {:.4} mm, less than the {} mm pegtwin builds: expected              cell.print_deviation_m to leave a gap",
+            builtin.name(),
+            clearance_m * 1e3,
+            made.peg_growth_m * 1e3,
+            made.hole_shrink_m * 1e3,
+            made.clearance_m * 1e3,
+            CLEARANCE_RANGE_M.0 * 1e3
+        )));
+    }
+    let tol = chord_tolerance(made.clearance_m);
     let half_gap = clearance_m / 2.0;
-    let d_max = half_gap + HOLE_ENTRY_CHAMFER_M;
+    let d_max = half_gap + made.hole_edge_m;
     let simplified = |regions: Vec<Region>| -> Vec<Region> {
         regions
             .into_iter()
@@ -155,11 +178,15 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
             })
             .collect()
     };
-    let peg_profile = simplified(union(&builtin.pieces(0.0, tol, d_max)));
-    let cavity = simplified(union(&builtin.pieces(half_gap, tol, d_max)));
-    let peg =
-        build_peg(&peg_profile).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
-    let hole = build_hole(&cavity).map_err(|e| Error::Input(format!("{}: {e}", builtin.name())))?;
+    let peg_profile = simplified(union(&builtin.pieces(made.peg_growth_m, tol, d_max)));
+    let cavity = simplified(union(&builtin.pieces(
+        half_gap - made.hole_shrink_m,
+        tol,
+        d_max,
+    )));
+    let named = |e: String| Error::Input(format!("{}: {e}", builtin.name()));
+    let peg = build_peg(&peg_profile, made.peg_edge_m).map_err(named)?;
+    let hole = build_hole(&cavity, made.hole_edge_m).map_err(named)?;
     Ok(PartPair {
         name: builtin.name().to_string(),
         clearance_m,
@@ -169,7 +196,8 @@ pub fn build_builtin(builtin: Builtin, clearance_m: f64) -> Result<PartPair> {
         cavity_depth_m: CAVITY_DEPTH_M,
         seat: Seat::TipOnFloor,
         peg_mass_kg: None,
-        content_key: None,
+        content_key: print.map(|p| p.key()),
+        print,
     })
 }
 
@@ -284,10 +312,10 @@ fn strip_piece(s: &[P2; 6], z_edge: f64, z_face: f64, z_far: f64) -> ConvexPiece
     ConvexPiece::from_faces(vertices, faces)
 }
 
-/// The peg: pin(s) with a chamfered tip, and the body block on top.
-fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
+/// The peg: pin(s) with a tip chamfered by `edge_m`, and the body block on top.
+fn build_peg(profile: &[Region], edge_m: f64) -> std::result::Result<Solid, String> {
     let rings: Vec<Vec<P2>> = profile.iter().flat_map(|r| r.rings().cloned()).collect();
-    let sk = skirt(profile, &rings, PEG_TIP_CHAMFER_M)?;
+    let sk = skirt(profile, &rings, edge_m)?;
     let ch = sk.chamfer;
     let mut pieces = prisms(&sk.core, ZPlane::flat(0.0), ZPlane::flat(PIN_LENGTH_M));
     pieces.extend(
@@ -342,8 +370,9 @@ fn build_peg(profile: &[Region]) -> std::result::Result<Solid, String> {
     })
 }
 
-/// The hole block: walls around the cavity with a chamfered mouth, and the floor slab.
-fn build_hole(cavity: &[Region]) -> std::result::Result<Solid, String> {
+/// The hole block: walls around the cavity with a mouth chamfered by `edge_m`, and the floor
+/// slab.
+fn build_hole(cavity: &[Region], edge_m: f64) -> std::result::Result<Solid, String> {
     let half = BLOCK_SIZE_M / 2.0;
     let square = rect(-half, -half, half, half);
     let block = Region {
@@ -356,7 +385,7 @@ fn build_hole(cavity: &[Region]) -> std::result::Result<Solid, String> {
         return Err("the cavity splits the block".into());
     }
     let rings: Vec<Vec<P2>> = material[0].holes.clone();
-    let sk = skirt(&material, &rings, HOLE_ENTRY_CHAMFER_M)?;
+    let sk = skirt(&material, &rings, edge_m)?;
     let ch = sk.chamfer;
     let floor = -CAVITY_DEPTH_M;
     let bottom = floor - FLOOR_THICKNESS_M;
