@@ -40,10 +40,11 @@ pub fn render(
     std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, format!("cannot create: {e}")))?;
     let png = dir.join(format!("{name}.png"));
     let svg = dir.join(format!("{name}.svg"));
-    let fail = |path: &Path, e: String| Error::file(path, format!("cannot draw: {e}"));
-    draw_png(BitMapBackend::new(&png, size).into_drawing_area()).map_err(|e| fail(&png, e))?;
-    draw_svg(SVGBackend::new(&svg, size).into_drawing_area()).map_err(|e| fail(&svg, e))?;
-    Ok(())
+    crate::files::write_atomically(&png, &png_bytes(size, draw_png)?)?;
+    let mut text = String::new();
+    draw_svg(SVGBackend::with_string(&mut text, size).into_drawing_area())
+        .map_err(|e| Error::file(&svg, format!("cannot draw: {e}")))?;
+    crate::files::write_atomically(&svg, text.as_bytes())
 }
 
 /// Renders one figure of `size` pixels as a PNG file in memory (for a page to inline).

@@ -1,9 +1,109 @@
-//! Output files are written whole or not at all: through a temporary file and a rename, so that
-//! an interrupted run (or concurrent shards) never leaves a half-written file behind.
+//! Files in and out, trusting nothing. Inputs are read only from regular files and only up to a
+//! documented size ([`TEXT_LIMIT_BYTES`], [`DATA_LIMIT_BYTES`]): a part symlinked to `/dev/zero`,
+//! a FIFO named `*.stl` or a folder is refused by name before it is opened. Outputs are written
+//! whole or not at all, through a temporary file and a rename, so that an interrupted run (or
+//! concurrent shards) never leaves a half-written file behind; and only over a regular file or
+//! a new path, never over a device, FIFO, socket, folder or symbolic link, which the rename would
+//! replace.
 
 use crate::error::{Error, Result};
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::Path;
+
+/// Largest text input read, bytes: scenarios, URDF, MJCF and assembly files, baselines, a
+/// campaign's `campaign.json` (64 MiB).
+pub const TEXT_LIMIT_BYTES: u64 = 64 << 20;
+/// Largest data input read, bytes: meshes and manifold files (1 GiB).
+pub const DATA_LIMIT_BYTES: u64 = 1 << 30;
+
+/// What a path that is not a regular file is, in words (`None`: a regular file).
+fn not_regular(meta: &std::fs::Metadata) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    match () {
+        _ if t.is_file() => None,
+        _ if t.is_dir() => Some("a folder"),
+        _ if t.is_symlink() => Some("a symbolic link"),
+        _ if t.is_fifo() => Some("a FIFO"),
+        _ if t.is_socket() => Some("a socket"),
+        _ if t.is_char_device() || t.is_block_device() => Some("a device"),
+        _ => Some("not a regular file"),
+    }
+}
+
+/// Opens `path` for reading if it is a regular file (after symbolic links) of at most `limit`
+/// bytes; returns it with its size.
+pub fn open_input(path: &Path, limit: u64) -> Result<(std::fs::File, u64)> {
+    let meta =
+        std::fs::metadata(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    if let Some(what) = not_regular(&meta) {
+        return Err(Error::file(
+            path,
+            format!("is {what}: expected a regular file"),
+        ));
+    }
+    if meta.len() > limit {
+        return Err(Error::file(
+            path,
+            format!(
+                "is {} bytes: expected at most {limit} bytes (pegtwin's limit for this kind of file)",
+                meta.len()
+            ),
+        ));
+    }
+    let file =
+        std::fs::File::open(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    Ok((file, meta.len()))
+}
+
+/// Reads the regular file `path` whole, at most `limit` bytes (a file that grows past it while
+/// read is refused too).
+pub fn read_input(path: &Path, limit: u64) -> Result<Vec<u8>> {
+    let (file, len) = open_input(path, limit)?;
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > limit {
+        return Err(Error::file(
+            path,
+            format!("grew past {limit} bytes while read: expected a file at rest"),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// Reads the regular text file `path` whole, at most [`TEXT_LIMIT_BYTES`].
+pub fn read_text(path: &Path) -> Result<String> {
+    String::from_utf8(read_input(path, TEXT_LIMIT_BYTES)?).map_err(|e| {
+        Error::file(
+            path,
+            format!(
+                "is not UTF-8 text (byte {}): expected a text file",
+                e.utf8_error().valid_up_to()
+            ),
+        )
+    })
+}
+
+/// Refuses an output path that exists and is not a regular file: writing it by renaming a new
+/// file over it would replace a device, FIFO, socket or link (as root, `/dev/null` itself).
+pub fn ensure_replaceable(path: &Path) -> Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) => match not_regular(&meta) {
+            Some(what) => Err(Error::file(
+                path,
+                format!(
+                    "is {what}: pegtwin writes only regular files, replacing them whole \
+                     (give the path of a regular file or a new one)"
+                ),
+            )),
+            None => Ok(()),
+        },
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(Error::file(path, format!("cannot write: {e}"))),
+    }
+}
 
 /// Write `bytes` to `path` through a temporary file and a rename.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
@@ -19,6 +119,7 @@ pub fn write_atomically_with(
     let name = path
         .file_name()
         .ok_or_else(|| Error::file(path, "is not a file path"))?;
+    ensure_replaceable(path)?;
     let tmp = path.with_file_name(format!(".{}.partial", name.to_string_lossy()));
     let io = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
     let written = std::fs::File::create(&tmp).and_then(|f| {
@@ -40,6 +141,7 @@ pub fn ensure_writable(path: &Path) -> Result<()> {
     if path.is_dir() {
         return Err(Error::file(path, "is a folder: expected a file path"));
     }
+    ensure_replaceable(path)?;
     let name = path
         .file_name()
         .ok_or_else(|| Error::file(path, "is not a file path"))?;

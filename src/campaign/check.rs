@@ -62,8 +62,7 @@ impl Baseline {
 
     /// Reads a baseline file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+        let text = crate::files::read_text(path)?;
         serde_json::from_str(&text)
             .map_err(|e| Error::file(path, format!("line {}: not a baseline file: {e}", e.line())))
     }

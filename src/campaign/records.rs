@@ -53,11 +53,10 @@ fn scan(
     repair: bool,
     mut each: impl FnMut(TrialRecord, Span) -> Result<()>,
 ) -> Result<()> {
-    let file = match std::fs::File::open(path) {
-        Ok(f) => f,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(Error::file(path, format!("cannot read: {e}"))),
-    };
+    if !path.exists() && std::fs::symlink_metadata(path).is_err() {
+        return Ok(());
+    }
+    let (file, _) = crate::files::open_input(path, u64::MAX)?;
     let mut reader = std::io::BufReader::new(file);
     let mut offset = 0u64;
     let mut line = String::new();
@@ -181,9 +180,7 @@ pub fn write_sorted(out: &Path, parts: &[(PathBuf, Vec<Entry>)]) -> Result<()> {
     order.sort_unstable_by_key(|&(cell, trial, ..)| (cell, trial));
     let mut files = parts
         .iter()
-        .map(|(path, _)| {
-            std::fs::File::open(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))
-        })
+        .map(|(path, _)| crate::files::open_input(path, u64::MAX).map(|(f, _)| f))
         .collect::<Result<Vec<_>>>()?;
     crate::files::write_atomically_with(out, |w| {
         let mut line = Vec::new();

@@ -212,8 +212,15 @@ fn upright(x: f64, y: f64, z: f64) -> Isometry3<f64> {
     Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::identity())
 }
 
+/// Steps of [`lift_until_free`], metres, and how many it takes at most (0.1 m: a user's parts
+/// decide whether the peg ever comes free, so the search is bounded).
+const LIFT_STEP_M: f64 = 10e-6;
+const LIFT_STEPS: usize = 10_000;
+
 /// Raises a start pose `hole_T_peg` in 10 micrometre steps along the hole's axis until the peg
-/// does not penetrate the hole posed at `base_t_hole` (the pose `probe` was made with).
+/// does not penetrate the hole posed at `base_t_hole` (the pose `probe` was made with), by at
+/// most 0.1 m: a peg still in the hole there starts where it is, and its case fails on the
+/// penetration it starts with.
 pub fn lift_until_free(
     probe: &PenetrationProbe,
     pair: &PartPair,
@@ -221,8 +228,12 @@ pub fn lift_until_free(
     pose: Isometry3<f64>,
 ) -> Isometry3<f64> {
     let mut p = pose;
-    while probe.max_penetration(&pair.peg, &(base_t_hole * p)) > 0.0 {
-        p.translation.vector.z += 10e-6;
+    for _ in 0..LIFT_STEPS {
+        let inside = probe.max_penetration(&pair.peg, &(base_t_hole * p)) > 0.0;
+        if !inside {
+            break;
+        }
+        p.translation.vector.z += LIFT_STEP_M;
     }
     p
 }

@@ -133,18 +133,51 @@ pub fn ensure_new_or_empty(out: &Path, why: &str) -> Result<()> {
 /// Reads `campaign.json` of a results folder.
 pub fn read_campaign(dir: &Path) -> Result<CampaignFile> {
     let path = dir.join(CAMPAIGN_FILE);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        Error::file(
+    if !path.exists() {
+        return Err(Error::file(
             &path,
-            format!("cannot read (is this a campaign folder?): {e}"),
-        )
-    })?;
+            "cannot read (is this a campaign folder?): no such file",
+        ));
+    }
+    let text = crate::files::read_text(&path)?;
     let mut c: CampaignFile = serde_json::from_str(&text)
         .map_err(|e| Error::file(&path, format!("not a campaign file: {e}")))?;
-    if let Some(dir) = &c.assembly_dir {
-        c.scenario.load_assemblies(dir)?;
-    }
+    c.check(&path)?;
     Ok(c)
+}
+
+impl CampaignFile {
+    /// What was read back from `path` goes through the checks a user's input does: the shard
+    /// (`0 <= index < count`), the scenario's every field, and the fingerprint, recomputed with
+    /// the assemblies loaded as they are now (an edited scenario or assembly file is another
+    /// campaign, whose records these are not).
+    fn check(&mut self, path: &Path) -> Result<()> {
+        let Shard { index, count } = self.shard;
+        if count == 0 || index >= count {
+            return Err(Error::file(
+                path,
+                format!("shard = {index}/{count}: expected I/N with 0 <= I < N"),
+            ));
+        }
+        self.scenario
+            .ensure_valid()
+            .map_err(|e| Error::file(path, format!("scenario: {e}")))?;
+        if let Some(dir) = &self.assembly_dir {
+            self.scenario.load_assemblies(dir)?;
+        }
+        let now = self.scenario.fingerprint();
+        if now != self.fingerprint {
+            return Err(Error::file(
+                path,
+                format!(
+                    "fingerprint {} does not match its scenario's, {now}: the file was edited, or \
+                     an assembly it names changed since the campaign ran (run it anew)",
+                    self.fingerprint
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Joins the shards in `dirs` into one campaign folder `out`: same scenario, every shard of the
@@ -186,14 +219,25 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, TrialsFile, usiz
         parts.push((path, entries));
     }
     if shards.len() != count {
+        // Named up to ten: a split's count is the user's number, not a bound on the work.
         let missing: Vec<String> = (0..count)
             .filter(|i| !shards.contains(i))
+            .take(10)
             .map(|i| format!("{i}/{count}"))
             .collect();
-        return Err(Error::Input(format!(
-            "merge: missing shards {}",
-            missing.join(", ")
-        )));
+        let more = count - shards.len() - missing.len();
+        return Err(Error::file(
+            first,
+            format!(
+                "is part of a split in {count}, and the merge is missing shards {}{}",
+                missing.join(", "),
+                if more > 0 {
+                    format!(" and {more} more")
+                } else {
+                    String::new()
+                }
+            ),
+        ));
     }
     let count = parts.iter().map(|p| p.1.len()).sum();
     let described = CampaignFile {

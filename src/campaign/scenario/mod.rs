@@ -156,8 +156,7 @@ impl Condition {
 impl Scenario {
     /// Reads and validates a scenario file, loading its assemblies (relative to its folder).
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+        let text = crate::files::read_text(path)?;
         // A bare file name's parent is "": the working folder.
         let dir = path
             .parent()

@@ -103,15 +103,13 @@ impl<'a> Reader<'a> {
 pub fn is_binary(path: &Path) -> bool {
     use std::io::Read;
     let mut head = [0u8; 16];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok()
+    crate::files::open_input(path, u64::MAX).is_ok_and(|(mut f, _)| f.read_exact(&mut head).is_ok())
         && &head == MAGIC
 }
 
 /// Load a binary manifold, checking magic, checksum and version.
 pub fn load(path: &Path) -> Result<Manifold> {
-    let bytes = std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let bytes = crate::files::read_input(path, crate::files::DATA_LIMIT_BYTES)?;
     if bytes.len() < 16 || &bytes[..16] != MAGIC {
         return Err(Error::file(
             path,
@@ -168,11 +166,11 @@ pub struct CsvPoses {
 
 /// Read a pose CSV (`x,y,z,roll,pitch,yaw` [+ `nx,...,nyaw`], metres and radians).
 pub fn read_csv(path: &Path) -> Result<CsvPoses> {
+    let (file, _) = crate::files::open_input(path, crate::files::DATA_LIMIT_BYTES)?;
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
-        .from_path(path)
-        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+        .from_reader(file);
     let header: Vec<String> = rdr
         .headers()
         .map_err(|e| Error::file(path, format!("line 1: {e}")))?

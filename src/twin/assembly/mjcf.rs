@@ -37,8 +37,7 @@ struct Angles {
 
 /// The geoms of `body` in the MJCF file `path`.
 pub fn body_geoms(path: &Path, body: &str) -> Result<Vec<Geom>> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let text = crate::files::read_text(path)?;
     let doc =
         Document::parse(&text).map_err(|e| Error::file(path, format!("not valid XML: {e}")))?;
     let fail = |msg: String| Error::file(path, msg);

@@ -153,8 +153,7 @@ pub struct Assembly {
 /// The robot of the assembly file at `path` (the built-in iiwa 14 when it has no `[robot]`),
 /// read without loading the parts.
 pub fn robot_of(path: &Path) -> Result<RobotSpec> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let text = crate::files::read_text(path)?;
     let file = parse(&text).map_err(|msg| Error::file(path, msg))?;
     robot::spec(
         file.robot.as_ref(),
@@ -165,8 +164,7 @@ pub fn robot_of(path: &Path) -> Result<RobotSpec> {
 
 /// Reads an assembly file, loads its parts into their frames, measures the fit and checks it.
 pub fn load(path: &Path) -> Result<Assembly> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let text = crate::files::read_text(path)?;
     let file = parse(&text).map_err(|msg| Error::file(path, msg))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     check_entries(&file).map_err(|msg| Error::file(path, msg))?;

@@ -83,9 +83,8 @@ impl BoundaryMesh {
             .sum()
     }
 
-    /// Writes a binary STL in millimetres.
+    /// Writes a binary STL in millimetres, whole or not at all.
     pub fn write_stl_mm(&self, path: &Path) -> Result<()> {
-        let io = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
         let tris: Vec<stl_io::Triangle> = self
             .triangles
             .iter()
@@ -101,8 +100,7 @@ impl BoundaryMesh {
                 }
             })
             .collect();
-        let mut file = std::fs::File::create(path).map_err(io)?;
-        stl_io::write_stl(&mut file, tris.iter()).map_err(io)
+        crate::files::write_atomically_with(path, |mut w| stl_io::write_stl(&mut w, tris.iter()))
     }
 }
 
@@ -205,9 +203,8 @@ fn read_raw_mesh(path: &Path) -> Result<RawMesh> {
         .map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
         Some("stl") => {
-            let mut file = std::fs::File::open(path)
-                .map_err(|e| Error::file(path, format!("cannot open: {e}")))?;
-            let mesh = stl_io::read_stl(&mut file)
+            let bytes = crate::files::read_input(path, crate::files::DATA_LIMIT_BYTES)?;
+            let mesh = stl_io::read_stl(&mut std::io::Cursor::new(bytes))
                 .map_err(|e| Error::file(path, format!("not a valid STL file: {e}")))?;
             Ok((
                 mesh.vertices.iter().map(|v| v.0).collect(),
@@ -223,7 +220,11 @@ fn read_raw_mesh(path: &Path) -> Result<RawMesh> {
                 single_index: true,
                 ..Default::default()
             };
-            let (models, _) = tobj::load_obj(path, &options)
+            let bytes = crate::files::read_input(path, crate::files::DATA_LIMIT_BYTES)?;
+            let mut reader = std::io::Cursor::new(bytes);
+            // Materials are not read: a part's geometry is all pegtwin takes from it.
+            let no_materials = |_: &Path| Err(tobj::LoadError::OpenFileFailed);
+            let (models, _) = tobj::load_obj_buf(&mut reader, &options, no_materials)
                 .map_err(|e| Error::file(path, format!("not a valid OBJ file: {e}")))?;
             let mut raw = Vec::new();
             let mut tris = Vec::new();

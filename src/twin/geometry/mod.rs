@@ -432,14 +432,10 @@ fn build_hole(cavity: &[Region], edge_m: f64) -> std::result::Result<Solid, Stri
 
 /// Writes `peg.stl` and `hole.stl` (millimetres, watertight) into `dir`, creating it, and with
 /// `convex_parts` also `peg_parts/` and `hole_parts/`: one STL per convex collision piece, the
-/// layout MuJoCo users keep from CoACD or V-HACD. Files are written to temporary names and
-/// renamed, so a failure leaves no half-written STL.
+/// layout MuJoCo users keep from CoACD or V-HACD. Each file is written whole or not at all
+/// ([`crate::files::write_atomically_with`]), so a failure leaves no half-written STL.
 pub fn export_stl(pair: &PartPair, dir: &std::path::Path, convex_parts: bool) -> Result<()> {
-    let write = |mesh: &BoundaryMesh, dest: std::path::PathBuf| -> Result<()> {
-        let tmp = dest.with_extension("stl.partial");
-        mesh.write_stl_mm(&tmp)?;
-        std::fs::rename(&tmp, &dest).map_err(|e| Error::file(&dest, format!("cannot write: {e}")))
-    };
+    let write = |mesh: &BoundaryMesh, dest: std::path::PathBuf| mesh.write_stl_mm(&dest);
     let mkdir = |d: &std::path::Path| {
         std::fs::create_dir_all(d).map_err(|e| Error::file(d, format!("cannot create: {e}")))
     };

@@ -89,8 +89,7 @@ impl RobotSpec {
                 path,
                 package_paths,
             } => {
-                let text = std::fs::read_to_string(path)
-                    .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+                let text = crate::files::read_text(path)?;
                 let loaded = urdf::load_text(&text, path, package_paths, flange)?;
                 (text, loaded)
             }

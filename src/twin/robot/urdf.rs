@@ -54,8 +54,7 @@ pub fn load_with_flange(
     search_path: &[PathBuf],
     flange: Option<&str>,
 ) -> Result<Loaded> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let text = crate::files::read_text(path)?;
     load_text(&text, path, search_path, flange)
 }
 
