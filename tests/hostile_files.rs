@@ -288,3 +288,38 @@ fn an_edited_campaign_json_is_refused_by_name_never_trusted() {
         }
     }
 }
+
+/// A baseline is read back as a user's input is (issue 47, class 5): one with no cells, or with a
+/// tolerance that would make every limit NaN or negative, is refused naming the field, not
+/// passed with "0 quantities compared".
+#[test]
+fn a_baseline_that_would_pass_anything_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("b.json");
+    let good = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenarios/smoke.baseline.json"
+    ))
+    .unwrap();
+    let whole: serde_json::Value = serde_json::from_str(&good).unwrap();
+    let load = |v: &serde_json::Value| {
+        std::fs::write(&path, serde_json::to_vec(v).unwrap()).unwrap();
+        pegtwin::campaign::check::Baseline::load(&path).map(drop)
+    };
+    assert!(load(&whole).is_ok());
+    let mut empty = whole.clone();
+    empty["cells"] = serde_json::json!([]);
+    let e = load(&empty).unwrap_err().to_string();
+    assert!(e.contains("cells = []"), "{e}");
+    for field in ["mae_rel", "mae_abs_mm", "mae_abs_deg", "fz_rel", "fz_abs_n"] {
+        for bad in [serde_json::json!(-0.1), serde_json::json!(-1e300)] {
+            let mut edited = whole.clone();
+            edited["tolerances"][field] = bad;
+            let e = load(&edited).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("tolerances.{field}")) || e.contains("not a baseline"),
+                "{e}"
+            );
+        }
+    }
+}

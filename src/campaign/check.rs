@@ -60,11 +60,37 @@ impl Baseline {
         }
     }
 
-    /// Reads a baseline file.
+    /// Reads a baseline file, checked as a user's input is: a baseline that holds no cell would
+    /// pass any run ("0 quantities compared"), and a tolerance that is negative or not finite
+    /// (a NaN limit) would pass any quantity.
     pub fn load(path: &Path) -> Result<Self> {
         let text = crate::files::read_text(path)?;
-        serde_json::from_str(&text)
-            .map_err(|e| Error::file(path, format!("line {}: not a baseline file: {e}", e.line())))
+        let b: Baseline = serde_json::from_str(&text).map_err(|e| {
+            Error::file(path, format!("line {}: not a baseline file: {e}", e.line()))
+        })?;
+        if b.cells.is_empty() {
+            return Err(Error::file(
+                path,
+                "cells = []: expected the cells of a finished campaign \
+                 (pegtwin check DIR --write-baseline FILE)",
+            ));
+        }
+        let t = &b.tolerances;
+        for (field, v) in [
+            ("mae_rel", t.mae_rel),
+            ("mae_abs_mm", t.mae_abs_mm),
+            ("mae_abs_deg", t.mae_abs_deg),
+            ("fz_rel", t.fz_rel),
+            ("fz_abs_n", t.fz_abs_n),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::file(
+                    path,
+                    format!("tolerances.{field} = {v}: expected a finite value of at least 0"),
+                ));
+            }
+        }
+        Ok(b)
     }
 }
 
