@@ -61,6 +61,10 @@ fn print_report(r: &AssemblyReport) {
         r.gap_band_mm[0],
         r.gap_band_mm[1]
     );
+    println!(
+        "axes: the peg's {:.4} mm off the hole's, leaning {:.3} deg to it (as the wall gaps measure them)",
+        r.axis_offset_mm, r.axis_tilt_deg
+    );
     let seat = match (r.seat, r.seat_depth_mm) {
         (Seat::TipOnFloor, Some(d)) => format!("stops {d:.3} mm in, its tip on the floor"),
         (Seat::FlangeOnBlock, Some(d)) => format!("stops {d:.3} mm in, its flange on the block"),

@@ -54,6 +54,13 @@ const PART_SIZE_RANGE_M: (f64, f64) = (1e-3, 1.0);
 const MAX_DEVIATION_OF_CLEARANCE: f64 = 0.25;
 /// A part whose hull stands this far off its surface is not convex, whatever the clearance, m.
 const NON_CONVEX_M: f64 = 0.05e-3;
+/// The peg's axis may stand this fraction of the clearance off the hole's, as the wall gaps
+/// measure it (a design's uneven gaps, a polygonised arc, read as a small offset)...
+pub const MAX_AXIS_OFFSET_OF_CLEARANCE: f64 = 0.08;
+/// ... or this far, whichever is more, m.
+pub const MIN_AXIS_OFFSET_M: f64 = 0.01e-3;
+/// The peg's axis may lean this much to the hole's, as the wall gaps measure it, rad (0.1 deg).
+pub const MAX_AXIS_TILT_RAD: f64 = 0.1 * std::f64::consts::PI / 180.0;
 
 /// An assembly file as written.
 #[derive(Debug, Deserialize)]
@@ -127,6 +134,11 @@ pub struct AssemblyReport {
     pub gap_per_side_median_mm: f64,
     /// Depths below the mouth over which the gap was measured (top, bottom), mm.
     pub gap_band_mm: [f64; 2],
+    /// How far the peg's axis stands off the hole's, as the wall gaps measure it, mm (the
+    /// clearance is measured as with the peg on the hole's axis).
+    pub axis_offset_mm: f64,
+    /// The angle between the peg's axis and the hole's, as the wall gaps measure it, deg.
+    pub axis_tilt_deg: f64,
     /// How far the peg goes in before it stops, mm (`None`: a through hole).
     pub seat_depth_mm: Option<f64>,
     pub seat: Seat,
@@ -179,6 +191,7 @@ pub fn load(path: &Path) -> Result<Assembly> {
             let cause = not_convex(&peg, &hole, NON_CONVEX_M, "").unwrap_or_default();
             Error::file(path, format!("{cause}{}", fit_error(e)))
         })?;
+    check_alignment(&fit).map_err(|msg| Error::file(path, msg))?;
     check_fit(&fit, &peg, &hole).map_err(|msg| Error::file(path, msg))?;
     let insertion_depth_m =
         insertion_depth(&fit, &file.hole, &peg.solid).map_err(|msg| Error::file(path, msg))?;
@@ -231,6 +244,8 @@ fn report(
         gap_per_side_min_mm: fit.gap_min_m * 1e3,
         gap_per_side_median_mm: fit.gap_median_m * 1e3,
         gap_band_mm: [fit.gap_band_m.0 * 1e3, fit.gap_band_m.1 * 1e3],
+        axis_offset_mm: fit.axis.offset_norm_m() * 1e3,
+        axis_tilt_deg: fit.axis.tilt_rad().to_degrees(),
         seat_depth_mm: fit.seat_depth_m.map(|d| d * 1e3),
         seat: fit.seat,
         cavity_depth_mm: fit.cavity_depth_m.map(|d| d * 1e3),
@@ -577,6 +592,42 @@ fn fit_error(e: FitError) -> String {
                 .into()
         }
     }
+}
+
+/// The frames must put the peg on the hole's axis: a peg off it or leaning to it would be
+/// measured as a tighter fit than it is, seat short and count a wrong pose as the hole's.
+fn check_alignment(fit: &Fit) -> std::result::Result<(), String> {
+    let axis = &fit.axis;
+    let band = format!(
+        "measured from the wall gaps {:.1}-{:.1} mm below the mouth",
+        fit.gap_band_m.0 * 1e3,
+        fit.gap_band_m.1 * 1e3
+    );
+    if axis.tilt_rad() > MAX_AXIS_TILT_RAD {
+        return Err(format!(
+            "peg.frame_rpy_deg / hole.frame_rpy_deg: the peg's axis leans {:.2} deg to the \
+             hole's (x {:+.5}, y {:+.5} per unit depth, {band}): the two frames' z axes must run \
+             along the hole's axis within {:.1} deg",
+            axis.tilt_rad().to_degrees(),
+            axis.tilt[0],
+            axis.tilt[1],
+            MAX_AXIS_TILT_RAD.to_degrees()
+        ));
+    }
+    let limit = MIN_AXIS_OFFSET_M.max(MAX_AXIS_OFFSET_OF_CLEARANCE * 2.0 * fit.gap_min_m);
+    if axis.offset_norm_m() > limit {
+        return Err(format!(
+            "peg.frame_xyz_mm / hole.frame_xyz_mm: the peg's axis stands {:.3} mm off the \
+             hole's (x {:+.3}, y {:+.3} mm in the hole frame, {band}): the two frames must \
+             put the peg on the hole's axis within {:.3} mm ({} % of the clearance)",
+            axis.offset_norm_m() * 1e3,
+            axis.offset_m[0] * 1e3,
+            axis.offset_m[1] * 1e3,
+            limit * 1e3,
+            MAX_AXIS_OFFSET_OF_CLEARANCE * 100.0,
+        ));
+    }
+    Ok(())
 }
 
 /// Every part must be convex to a quarter of the clearance.
