@@ -323,3 +323,83 @@ fn a_baseline_that_would_pass_anything_is_refused() {
         }
     }
 }
+
+/// A record moved into another cell of the same pair, whose trials share their seeds, is not
+/// taken as that cell's by `check`, `merge` or `--resume` (issue 47, class 5): every record swaps
+/// its cell with each record of the same trial number in another cell, and each edited file is
+/// refused naming `trials.jsonl`.
+#[test]
+fn a_record_moved_into_another_cell_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("s.toml");
+    std::fs::write(
+        &scenario,
+        "name = \"s\"\ntrials = 2\ngeometries = [\"cross\"]\nclearances_mm = [1.0]\n\
+         t_obs_s = [0.5]\nmethods = [\"manifold\", \"direct\"]\ndirect_t_obs_s = 0.5\n\
+         [manifold]\nepisodes = 2\nepisode_s = 1.0\npoints = 1000\n",
+    )
+    .unwrap();
+    let (run, cache) = (dir.path().join("run"), dir.path().join("cache"));
+    let o = pegtwin(&[
+        "campaign",
+        scenario.to_str().unwrap(),
+        "--out",
+        run.to_str().unwrap(),
+        "--cache-dir",
+        cache.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let file = run.join("trials.jsonl");
+    let whole = std::fs::read_to_string(&file).unwrap();
+    let lines: Vec<serde_json::Value> = whole
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let baseline = dir.path().join("b.json");
+    let base = baseline.to_str().unwrap();
+    let mut swaps = 0;
+    for (i, a) in lines.iter().enumerate() {
+        for (j, b) in lines.iter().enumerate() {
+            if i >= j || a["trial"] != b["trial"] || a["cell"] == b["cell"] {
+                continue;
+            }
+            let mut edited = lines.clone();
+            edited[i]["cell"] = b["cell"].clone();
+            edited[j]["cell"] = a["cell"].clone();
+            let text: String = edited.iter().map(|v| format!("{v}\n")).collect();
+            std::fs::write(&file, text).unwrap();
+            let merged = dir.path().join(format!("m{i}-{j}"));
+            for args in [
+                vec!["check", run.to_str().unwrap(), "--write-baseline", base],
+                vec![
+                    "merge",
+                    run.to_str().unwrap(),
+                    "--out",
+                    merged.to_str().unwrap(),
+                ],
+                vec![
+                    "campaign",
+                    scenario.to_str().unwrap(),
+                    "--out",
+                    run.to_str().unwrap(),
+                    "--cache-dir",
+                    cache.to_str().unwrap(),
+                    "--resume",
+                ],
+            ] {
+                let o = pegtwin(&args);
+                assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+                assert!(
+                    stderr(&o).contains("trials.jsonl") && stderr(&o).contains("moved"),
+                    "{args:?}: {}",
+                    stderr(&o)
+                );
+            }
+            swaps += 1;
+        }
+    }
+    assert_eq!(swaps, 2);
+    std::fs::write(&file, whole).unwrap();
+    let o = pegtwin(&["check", run.to_str().unwrap(), "--write-baseline", base]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -4,6 +4,7 @@
 //! not grow with its number of trials (docs/journal/2026-11-26.md, "Soak").
 
 use crate::error::{Error, Result};
+use crate::method::config::Method;
 use crate::method::trial::TrialResult;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
@@ -27,6 +28,32 @@ pub struct TrialSpec {
     pub cell: usize,
     pub trial: usize,
     pub seed: u64,
+    /// The [`condition_key`] of its cell.
+    pub condition: u64,
+}
+
+/// A checksum of what makes a cell (geometry, clearance, method, observation time): a record
+/// carries its own, so that one moved into another cell of the same pair, whose trials share
+/// their seeds, is told apart.
+pub fn condition_key(geometry: &str, clearance_mm: f64, method: Method, t_obs_s: f64) -> u64 {
+    let mut h = crc32fast::Hasher::new();
+    h.update(geometry.as_bytes());
+    h.update(&clearance_mm.to_bits().to_le_bytes());
+    h.update(
+        serde_json::to_string(&method)
+            .expect("a method serialises")
+            .as_bytes(),
+    );
+    h.update(&t_obs_s.to_bits().to_le_bytes());
+    u64::from(h.finalize())
+}
+
+impl TrialRecord {
+    /// The [`condition_key`] of the cell this record says it ran in.
+    pub fn condition(&self) -> u64 {
+        let r = &self.result;
+        condition_key(&r.geometry, r.clearance_mm, r.method, r.t_obs_s)
+    }
 }
 
 /// Where one record's line lies in its file, bytes (newline included).
@@ -42,6 +69,8 @@ pub struct Entry {
     pub cell: usize,
     pub trial: usize,
     pub seed: u64,
+    /// The [`condition_key`] of the cell the record says it ran in.
+    pub condition: u64,
     span: Span,
 }
 
@@ -53,7 +82,10 @@ fn scan(
     repair: bool,
     mut each: impl FnMut(TrialRecord, Span) -> Result<()>,
 ) -> Result<()> {
-    if !path.exists() && std::fs::symlink_metadata(path).is_err() {
+    // Only a missing file is an empty one: a file that cannot be looked at (no permission) is
+    // refused by `open_input`, not read as holding no records.
+    if matches!(std::fs::symlink_metadata(path), Err(e) if e.kind() == std::io::ErrorKind::NotFound)
+    {
         return Ok(());
     }
     let (file, _) = crate::files::open_input(path, u64::MAX)?;
@@ -120,6 +152,7 @@ pub fn index_records(path: &Path, repair: bool) -> Result<Vec<Entry>> {
             cell: r.cell,
             trial: r.trial,
             seed: r.result.seed,
+            condition: r.condition(),
             span,
         });
         Ok(())
@@ -127,19 +160,33 @@ pub fn index_records(path: &Path, repair: bool) -> Result<Vec<Entry>> {
     Ok(entries)
 }
 
-/// Checks that every entry is a trial of `wanted` (same seed) and none repeats.
+/// Checks that every entry is a trial of `wanted` (same seed, same cell conditions) and none
+/// repeats.
 pub fn check_entries_belong(entries: &[Entry], wanted: &[TrialSpec], path: &Path) -> Result<()> {
-    let wanted: BTreeMap<(usize, usize), u64> =
-        wanted.iter().map(|t| ((t.cell, t.trial), t.seed)).collect();
+    let wanted: BTreeMap<(usize, usize), (u64, u64)> = wanted
+        .iter()
+        .map(|t| ((t.cell, t.trial), (t.seed, t.condition)))
+        .collect();
     let mut seen = BTreeSet::new();
     for e in entries {
         let key = (e.cell, e.trial);
-        if wanted.get(&key) != Some(&e.seed) {
+        let Some(&(seed, condition)) = wanted.get(&key).filter(|w| w.0 == e.seed) else {
             return Err(Error::file(
                 path,
                 format!(
                     "holds trial {} of cell {} (seed {}), which this campaign does not run",
                     e.trial, e.cell, e.seed
+                ),
+            ));
+        };
+        if condition != e.condition {
+            return Err(Error::file(
+                path,
+                format!(
+                    "holds a record of trial {} of cell {} (seed {seed}) whose geometry, \
+                     clearance, method or observation time are not that cell's: a record moved \
+                     between cells, or a file of another campaign",
+                    e.trial, e.cell
                 ),
             ));
         }

@@ -297,6 +297,7 @@ mod tests {
             cell: 3,
             trial: 17,
             seed: 9,
+            condition: 0,
         };
         let name = file_name(&spec, "sim_fault");
         assert_eq!(name, "c003-t0017-sim_fault.html");

@@ -56,6 +56,7 @@ mod tests {
                 cell: c,
                 trial: t,
                 seed: seeds::trial(s.seed, &cell.geometry, cell.clearance_mm, t),
+                condition: 0,
             })
         });
         specs.collect()

@@ -4,7 +4,6 @@ use super::choices::choice;
 use super::progress::Bars;
 use clap::Args;
 use pegtwin::campaign::check::{Baseline, compare, findings_table};
-use pegtwin::campaign::records::{TrialsFile, index_records};
 use pegtwin::campaign::replays::Replays;
 use pegtwin::campaign::run::{self as campaign, CampaignOptions, RunOptions, Shard};
 use pegtwin::campaign::scenario::Scenario;
@@ -149,28 +148,8 @@ pub fn merge_command(args: MergeArgs) -> Result<i32> {
 }
 
 fn finished_summary(dir: &Path) -> Result<summary::Summary> {
-    let c = campaign::read_campaign(dir)?;
-    if c.shard != Shard::WHOLE {
-        return Err(Error::file(
-            dir,
-            format!(
-                "is shard {}/{}: merge the shards first (pegtwin merge)",
-                c.shard.index, c.shard.count
-            ),
-        ));
-    }
-    let path = dir.join(campaign::TRIALS_FILE);
-    let held = index_records(&path, false)?.len();
-    let expected = campaign::all_trials(&c.scenario).len();
-    if held != expected {
-        return Err(Error::file(
-            &path,
-            format!(
-                "holds {held} of {expected} trials: the campaign is not finished (--resume it)"
-            ),
-        ));
-    }
-    summary::summarise(&c.scenario, &TrialsFile { path })
+    let (c, trials) = campaign::read_finished(dir)?;
+    summary::summarise(&c.scenario, &trials)
 }
 
 pub fn check_command(args: CheckArgs) -> Result<i32> {

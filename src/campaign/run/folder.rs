@@ -130,6 +130,36 @@ pub fn ensure_new_or_empty(out: &Path, why: &str) -> Result<()> {
     Ok(())
 }
 
+/// A finished, whole results folder (not a shard): its `campaign.json`, and its `trials.jsonl`
+/// checked to hold every trial of the scenario once, each record in its own cell.
+pub fn read_finished(dir: &Path) -> Result<(CampaignFile, TrialsFile)> {
+    let c = read_campaign(dir)?;
+    if c.shard != Shard::WHOLE {
+        return Err(Error::file(
+            dir,
+            format!(
+                "is shard {}/{}: merge the shards first (pegtwin merge)",
+                c.shard.index, c.shard.count
+            ),
+        ));
+    }
+    let path = dir.join(TRIALS_FILE);
+    let entries = index_records(&path, false)?;
+    let wanted = shard_trials(&c.scenario, Shard::WHOLE);
+    if entries.len() < wanted.len() {
+        return Err(Error::file(
+            &path,
+            format!(
+                "holds {} of {} trials: the campaign is not finished (--resume it)",
+                entries.len(),
+                wanted.len()
+            ),
+        ));
+    }
+    check_complete(&entries, &wanted, &path)?;
+    Ok((c, TrialsFile { path }))
+}
+
 /// Reads `campaign.json` of a results folder.
 pub fn read_campaign(dir: &Path) -> Result<CampaignFile> {
     let path = dir.join(CAMPAIGN_FILE);

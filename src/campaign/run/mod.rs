@@ -17,12 +17,13 @@ mod folder;
 
 pub use folder::{
     CAMPAIGN_FILE, CampaignFile, Shard, TRIALS_FILE, ensure_new_or_empty, merge, read_campaign,
+    read_finished,
 };
 use folder::{check_folder, create_folder};
 
 use crate::campaign::records::{
-    TrialRecord, TrialSpec, TrialsFile, check_complete, check_entries_belong, index_records,
-    write_sorted,
+    TrialRecord, TrialSpec, TrialsFile, check_complete, check_entries_belong, condition_key,
+    index_records, write_sorted,
 };
 use crate::campaign::replays::{ReplayWriter, Replays};
 use crate::campaign::scenario::{Condition, PlannedCell, Scenario};
@@ -49,17 +50,23 @@ pub fn trial_seed(scenario_seed: u64, cell: &Condition, index: usize) -> u64 {
     seeds::trial(scenario_seed, &cell.geometry, cell.clearance_mm, index)
 }
 
+/// Trial `trial` of the cell numbered `index`, seeded from the scenario's seed.
+fn trial_spec(scenario_seed: u64, (index, cell): (usize, &Condition), trial: usize) -> TrialSpec {
+    TrialSpec {
+        cell: index,
+        trial,
+        seed: trial_seed(scenario_seed, cell, trial),
+        condition: condition_key(&cell.geometry, cell.clearance_mm, cell.method, cell.t_obs_s),
+    }
+}
+
 /// Every trial of the scenario in cell-major order.
 pub fn all_trials(scenario: &Scenario) -> Vec<TrialSpec> {
     let cells = scenario.cells();
     let mut out = Vec::with_capacity(cells.len() * scenario.trials);
     for (c, cell) in cells.iter().enumerate() {
         for t in 0..scenario.trials {
-            out.push(TrialSpec {
-                cell: c,
-                trial: t,
-                seed: trial_seed(scenario.seed, cell, t),
-            });
+            out.push(trial_spec(scenario.seed, (c, cell), t));
         }
     }
     out
@@ -241,11 +248,7 @@ pub fn single_trial(
             scenario.trials
         )));
     }
-    let spec = TrialSpec {
-        cell,
-        trial,
-        seed: trial_seed(scenario.seed, condition, trial),
-    };
+    let spec = trial_spec(scenario.seed, (cell, condition), trial);
     let prepared = prepare(scenario, std::slice::from_ref(&spec), options)?;
     Ok((spec, prepared))
 }
