@@ -34,8 +34,8 @@
 //!   gate ([`campaign::check`]).
 //!
 //! Below them all: [`pose`] (6-D poses and SE(3)), [`error`], [`choice`] (named choices),
-//! [`files`], [`figures`] (PNG and SVG), [`schedule`] (the order work takes the cores, longest
-//! first). The command line lives in
+//! [`files`], [`toml_input`] (TOML read strictly), [`figures`] (PNG and SVG), [`schedule`] (the
+//! order work takes the cores, longest first). The command line lives in
 //! the binary (`src/main.rs`, `src/cli/`) and only parses, calls this library and prints.
 
 pub mod campaign;
@@ -48,4 +48,5 @@ pub mod pose;
 pub mod replay;
 pub mod schedule;
 pub mod selfcheck;
+pub mod toml_input;
 pub mod twin;

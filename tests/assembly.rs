@@ -433,6 +433,10 @@ fn bad_assembly_files_are_refused_by_field_with_exit_2() {
             text.replace("units = \"mm\"\n[hole]", "[hole]"),
             "peg.units: missing",
         ),
+        (
+            text.replace("[hole]\n", "frame_xyz_mm = [0, 0, 0, 1e308]\n[hole]\n"),
+            "peg.frame_xyz_mm: 4 values given, expected 3",
+        ),
     ];
     for (k, (body, expected)) in cases.iter().enumerate() {
         let file = dir.path().join(format!("bad{k}.toml"));

@@ -175,13 +175,7 @@ impl Scenario {
 
     /// Parses and validates scenario text, loading its assemblies from paths relative to `dir`.
     pub fn parse_in(text: &str, dir: &Path) -> Result<Self> {
-        let mut scenario: Scenario = toml::from_str(text).map_err(|e| {
-            let line = e
-                .span()
-                .map(|s| format!("line {}: ", text[..s.start].matches('\n').count() + 1))
-                .unwrap_or_default();
-            Error::Input(format!("{line}{}", e.message()))
-        })?;
+        let mut scenario: Scenario = crate::toml_input::parse(text).map_err(Error::Input)?;
         scenario.load_assemblies(dir)?;
         scenario.ensure_valid()?;
         Ok(scenario)

@@ -63,7 +63,7 @@ pub const MIN_AXIS_OFFSET_M: f64 = 0.01e-3;
 pub const MAX_AXIS_TILT_RAD: f64 = 0.1 * std::f64::consts::PI / 180.0;
 
 /// An assembly file as written.
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 struct AssemblyFile {
     name: String,
@@ -75,7 +75,7 @@ struct AssemblyFile {
 }
 
 /// `[peg]` or `[hole]` as written.
-#[derive(Debug, Default, Deserialize)]
+#[derive(Debug, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 struct PartEntry {
     mesh: Option<PathBuf>,
@@ -261,13 +261,7 @@ fn report(
 
 /// The file's TOML, with the line of the first error.
 fn parse(text: &str) -> std::result::Result<AssemblyFile, String> {
-    toml::from_str(text).map_err(|e| {
-        let line = e
-            .span()
-            .map(|s| format!("line {}: ", text[..s.start].matches('\n').count() + 1))
-            .unwrap_or_default();
-        format!("{line}{}", e.message())
-    })
+    crate::toml_input::parse(text)
 }
 
 /// Checks the fields that need no mesh: the name, which fields each part may have.
