@@ -181,8 +181,12 @@ pub fn load(path: &Path) -> Result<Assembly> {
     let dir = path.parent().unwrap_or(Path::new("."));
     check_entries(&file).map_err(|msg| Error::file(path, msg))?;
     let robot = robot::spec(file.robot.as_ref(), dir, path)?;
-    let peg = load_part("peg", &file.peg, dir, file.clearance_mm)?;
-    let hole = load_part("hole", &file.hole, dir, file.clearance_mm)?;
+    let in_file = |e: Error| match e {
+        Error::Input(msg) => Error::file(path, msg),
+        other => other,
+    };
+    let peg = load_part("peg", &file.peg, dir, file.clearance_mm).map_err(in_file)?;
+    let hole = load_part("hole", &file.hole, dir, file.clearance_mm).map_err(in_file)?;
     check_frames(&peg.solid, &hole.solid).map_err(|msg| Error::file(path, msg))?;
     let max_depth = -hole.solid.bounds().0.z + peg.solid.bounds().1.z;
     let fit =
@@ -381,6 +385,7 @@ fn load_part(
     let (lo, hi) = solid.bounds();
     let size = hi - lo;
     check_size(section, e, size.amax())?;
+    check_solid(section, &solid, size.amin())?;
     let report = PartReport {
         source: read.source,
         pieces: solid.pieces.len(),
@@ -525,6 +530,11 @@ fn move_into_frame(pieces: &[ConvexPiece], e: &PartEntry) -> Vec<ConvexPiece> {
         .collect()
 }
 
+/// A part thinner than this in any direction is not a part, m.
+const MIN_PART_THICKNESS_M: f64 = 0.1e-3;
+/// A convex piece with no more volume than this is flat, m^3 (a 0.01 mm cube).
+const MIN_PIECE_VOLUME_M3: f64 = 1e-15;
+
 /// A part smaller than 1 mm or larger than 1 m has its units wrong.
 fn check_size(section: &str, e: &PartEntry, size_m: f64) -> Result<()> {
     let (lo, hi) = PART_SIZE_RANGE_M;
@@ -539,6 +549,30 @@ fn check_size(section: &str, e: &PartEntry, size_m: f64) -> Result<()> {
         lo * 1e3,
         hi
     )))
+}
+
+/// A part must be a solid: no piece without volume (a flat mesh, a lone triangle), and at least
+/// [`MIN_PART_THICKNESS_M`] across in every direction.
+fn check_solid(section: &str, solid: &Solid, thinnest_m: f64) -> Result<()> {
+    let flat = solid
+        .pieces
+        .iter()
+        .position(|p| !(p.volume() > MIN_PIECE_VOLUME_M3));
+    if let Some(k) = flat {
+        return Err(Error::Input(format!(
+            "{section}.mesh: convex piece {k} of the {section} has no volume (a flat mesh or a \
+             lone triangle): expected closed solids"
+        )));
+    }
+    if !(thinnest_m >= MIN_PART_THICKNESS_M) {
+        return Err(Error::Input(format!(
+            "{section}.mesh: the {section} is {:.4} mm thick at its thinnest: expected a solid at \
+             least {} mm across in every direction",
+            thinnest_m * 1e3,
+            MIN_PART_THICKNESS_M * 1e3
+        )));
+    }
+    Ok(())
 }
 
 /// The peg's tip at its frame's origin, the hole below its mouth.
