@@ -446,8 +446,14 @@ fn bad_assembly_files_are_refused_by_field_with_exit_2() {
             "the peg is 0.0500 mm thick at its thinnest",
         ),
     ];
-    write_boxes(&dir.path().join("flat"), &[[-5.0, -5.0, 0.0, 5.0, 5.0, 0.0]]);
-    write_boxes(&dir.path().join("sheet"), &[[-5.0, -0.025, 0.0, 5.0, 0.025, 20.0]]);
+    write_boxes(
+        &dir.path().join("flat"),
+        &[[-5.0, -5.0, 0.0, 5.0, 5.0, 0.0]],
+    );
+    write_boxes(
+        &dir.path().join("sheet"),
+        &[[-5.0, -0.025, 0.0, 5.0, 0.025, 20.0]],
+    );
     for (k, (body, expected)) in cases.iter().enumerate() {
         let file = dir.path().join(format!("bad{k}.toml"));
         std::fs::write(&file, body).unwrap();
