@@ -557,14 +557,14 @@ fn check_solid(section: &str, solid: &Solid, thinnest_m: f64) -> Result<()> {
     let flat = solid
         .pieces
         .iter()
-        .position(|p| !(p.volume() > MIN_PIECE_VOLUME_M3));
+        .position(|p| p.volume().is_nan() || p.volume() <= MIN_PIECE_VOLUME_M3);
     if let Some(k) = flat {
         return Err(Error::Input(format!(
             "{section}.mesh: convex piece {k} of the {section} has no volume (a flat mesh or a \
              lone triangle): expected closed solids"
         )));
     }
-    if !(thinnest_m >= MIN_PART_THICKNESS_M) {
+    if thinnest_m.is_nan() || thinnest_m < MIN_PART_THICKNESS_M {
         return Err(Error::Input(format!(
             "{section}.mesh: the {section} is {:.4} mm thick at its thinnest: expected a solid at \
              least {} mm across in every direction",
