@@ -390,6 +390,32 @@ fn a_part_that_is_not_convex_is_decomposed_exactly_or_refused_by_name() {
     );
 }
 
+/// A convex peg in one file (a square pin with a 1 mm chamfer at its tip) is taken as it is, one
+/// exact piece, where V-HACD's pieces had it refused as "not convex" (issue 47, class 6).
+#[test]
+fn a_convex_peg_in_one_file_is_taken_as_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = square_pair(dir.path(), (20.0, 0.4), false, true, "");
+    let square = |half: f64, z: f64| {
+        [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .map(|(x, y)| P3::new(x * half, y * half, z) * 1e-3)
+    };
+    let points: Vec<P3> = [square(4.0, 0.0), square(5.0, 1.0), square(5.0, 20.0)].concat();
+    (ConvexPiece::from_points(&points).unwrap().to_mesh())
+        .write_stl_mm(&dir.path().join("pin.stl"))
+        .unwrap();
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(
+        &file,
+        text.replacen("mesh = \"peg\"", "mesh = \"pin.stl\"", 1),
+    )
+    .unwrap();
+    let loaded = load(&file).unwrap();
+    assert_eq!(loaded.pair.peg.pieces.len(), 1);
+    assert!(loaded.report.peg.max_deviation_mm < 1e-6);
+    assert!((loaded.report.clearance_min_mm - 0.4).abs() < 1e-4);
+}
+
 #[test]
 fn bad_assembly_files_are_refused_by_field_with_exit_2() {
     let dir = tempfile::tempdir().unwrap();

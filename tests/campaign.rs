@@ -507,3 +507,142 @@ fn every_shipped_scenario_loads() {
 fn is_assembly(path: &Path) -> bool {
     std::fs::read_to_string(path).is_ok_and(|t| t.lines().any(|l| l.trim() == "[peg]"))
 }
+
+/// The peak resident memory of a running child so far, bytes (Linux: VmHWM).
+fn peak_memory(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// A campaign is planned in memory proportional to its cells, not its trials (issue 47, class
+/// 6): one shard of six cells of a million trials each runs its two trials in the memory of any
+/// small campaign, 15 MB (listing the six million trials first took 200 MB, and those of 21
+/// cells at a million each 2 GB before the first trial).
+#[test]
+fn a_campaign_of_millions_of_trials_is_planned_in_little_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "name = \"huge\"\nseed = 3\ntrials = 1000000\ngeometries = [\"cross\", \"key\", \
+                \"plug3\"]\nclearances_mm = [0.5, 1.0]\nt_obs_s = [3.0]\nmethods = [\"direct\"]\n\
+                direct_t_obs_s = 3.0\n";
+    let scenario = write(dir.path(), "huge.toml", text);
+    let out = dir.path().join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pegtwin"))
+        .args(["campaign", &scenario, "--out", out.to_str().unwrap()])
+        .args(["--shard", "0/3000000", "--replays", "none"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut peak = 0;
+    while child.try_wait().unwrap().is_none() {
+        peak = peak.max(peak_memory(child.id()).unwrap_or(0));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let output = child.wait_with_output().unwrap();
+    assert!(output.status.success(), "{}", stderr(&output));
+    let records = trials(&out);
+    assert_eq!(records.lines().count(), 2, "{records}");
+    assert!(records.contains("\"cell\":3,\"trial\":0"), "{records}");
+    assert!(peak < 64 << 20, "peak resident memory {} MB", peak >> 20);
+}
+
+/// A campaign of the direct baseline only (no manifold to build), four trials.
+const DIRECT: &str = "name = \"direct\"\nseed = 5\ntrials = 4\ngeometries = [\"cross\"]\n\
+                      clearances_mm = [0.5]\nt_obs_s = [2.0]\nmethods = [\"direct\"]\n\
+                      direct_t_obs_s = 2.0\n";
+
+/// The replay pages of a results folder, with their bytes.
+fn pages(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    (replays_of(dir).into_iter())
+        .map(|p| {
+            let bytes = std::fs::read(dir.join("replays").join(&p)).unwrap();
+            (p, bytes)
+        })
+        .collect()
+}
+
+/// Outputs cut short are completed (issue 47, class 3): the replays a run could not write (here
+/// a file stands where their folder goes) or asked for only on resuming are drawn on `--resume`,
+/// byte for byte those of an uncut run, the records untouched; a merge cut short is completed
+/// by `merge --resume`, and without it the refusal says so.
+#[test]
+fn replays_a_run_lacks_are_drawn_on_resume_and_a_cut_merge_completes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (t, cache) = (tmp.path(), tmp.path().join("cache"));
+    let scenario = write(t, "direct.toml", DIRECT);
+    let all = ["--replays", "all"];
+    let whole = t.join("whole");
+    let o = campaign(&scenario, &whole, &cache, &all);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (reference, drawn) = (trials(&whole), pages(&whole));
+    assert_eq!(drawn.len(), 4);
+
+    let cut = t.join("cut");
+    let o = campaign(&scenario, &cut, &cache, &["--replays", "none"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::write(cut.join("replays"), "in the way").unwrap();
+    let o = campaign(&scenario, &cut, &cache, &["--resume", "--replays", "all"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("replays"), "{}", stderr(&o));
+    assert_eq!(trials(&cut), reference, "the records are untouched");
+    std::fs::remove_file(cut.join("replays")).unwrap();
+    let o = campaign(&scenario, &cut, &cache, &["--resume", "--replays", "all"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(said.contains("4 run again for the replays"), "{said}");
+    assert_eq!(trials(&cut), reference);
+    assert!(
+        pages(&cut) == drawn,
+        "redrawn pages differ from the uncut run's"
+    );
+    let o = campaign(&scenario, &cut, &cache, &["--resume", "--replays", "all"]);
+    assert!(o.status.success() && !String::from_utf8_lossy(&o.stdout).contains("run again"));
+
+    let mut shards = Vec::new();
+    for i in 0..2 {
+        let dir = t.join(format!("shard{i}"));
+        let shard = format!("{i}/2");
+        let o = campaign(
+            &scenario,
+            &dir,
+            &cache,
+            &["--shard", &shard, "--replays", "all"],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        shards.push(dir.to_str().unwrap().to_owned());
+    }
+    let merged = t.join("merged");
+    let merge = |extra: &[&str]| {
+        let mut args = vec![
+            "merge",
+            &shards[0],
+            &shards[1],
+            "--out",
+            merged.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        pegtwin(&args)
+    };
+    let o = merge(&["--cache-dir", cache.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Cut short after the records: some replays, the summary and the report missing.
+    for p in replays_of(&merged).iter().step_by(2) {
+        std::fs::remove_file(merged.join("replays").join(p)).unwrap();
+    }
+    for f in ["report.html", "summary.json", "summary.csv"] {
+        std::fs::remove_file(merged.join(f)).unwrap();
+    }
+    let o = merge(&["--cache-dir", cache.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--resume"), "{}", stderr(&o));
+    let o = merge(&["--cache-dir", cache.to_str().unwrap(), "--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(trials(&merged), reference);
+    assert!(
+        pages(&merged) == drawn,
+        "merged pages differ from the whole run's"
+    );
+    assert!(merged.join("report.html").is_file() && merged.join("summary.json").is_file());
+}

@@ -1,7 +1,10 @@
 //! Meshes in: convex-part folders, single non-convex files, and bad files.
 
 use pegtwin::twin::geometry::mesh::{MeshUnits, load_solid};
+use pegtwin::twin::geometry::solid::{ConvexPiece, P3};
 use pegtwin::twin::geometry::{Builtin, build_builtin, export_stl};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use std::io::Write;
 
 fn volume(solid: &pegtwin::twin::geometry::solid::Solid) -> f64 {
@@ -124,4 +127,92 @@ fn bad_mesh_files_get_errors_that_name_them() {
         e.contains("no_parts") && e.contains("no .stl or .obj"),
         "{e}"
     );
+}
+
+/// A convex solid of one of the shapes users bring as one file (issue 47, class 6), drawn from
+/// `rng`: a cone or a frustum, a faceted ball, a chamfered round pin, or the hull of random
+/// points. Its vertices, in mm.
+fn random_convex_solid(rng: &mut ChaCha8Rng) -> (&'static str, Vec<[f64; 3]>) {
+    let sides = rng.random_range(6..64);
+    let ring = |r: f64, z: f64| {
+        (0..sides).map(move |k| {
+            let a = std::f64::consts::TAU * k as f64 / sides as f64;
+            [r * a.cos(), r * a.sin(), z]
+        })
+    };
+    let r = rng.random_range(2.0..20.0);
+    let h = rng.random_range(3.0..40.0);
+    match rng.random_range(0..4) {
+        0 => {
+            let top = rng.random_range(0.0..0.9) * r;
+            let mut v: Vec<[f64; 3]> = ring(r, 0.0).collect();
+            if top < 0.1 {
+                v.push([0.0, 0.0, h]);
+            } else {
+                v.extend(ring(top, h));
+            }
+            ("cone", v)
+        }
+        1 => {
+            let n = rng.random_range(50..300);
+            let v = (0..n)
+                .map(|_| {
+                    let (u, w): (f64, f64) = (rng.random_range(-1.0..1.0), rng.random());
+                    let (s, a) = ((1.0 - u * u).sqrt(), std::f64::consts::TAU * w);
+                    [r * s * a.cos(), r * s * a.sin(), r * u]
+                })
+                .collect();
+            ("ball", v)
+        }
+        2 => {
+            let c = rng.random_range(0.1..0.4) * r;
+            let v = ring(r - c, 0.0)
+                .chain(ring(r, c))
+                .chain(ring(r, h))
+                .collect();
+            ("chamfered pin", v)
+        }
+        _ => {
+            let n = rng.random_range(4..40);
+            let v = (0..n)
+                .map(|_| [0, 1, 2].map(|_| rng.random_range(-r..r)))
+                .collect();
+            ("hull of points", v)
+        }
+    }
+}
+
+/// Convex parts in one file (a cone, a ball, a chamfered pin...) load as themselves, one exact
+/// piece, with no warning: no longer decomposed by V-HACD and refused as "not convex".
+#[test]
+fn convex_parts_in_one_file_load_as_one_exact_piece() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(47);
+    for k in 0..40 {
+        let (shape, vertices) = random_convex_solid(&mut rng);
+        let points: Vec<P3> = vertices.iter().map(|v| P3::from(*v) * 1e-3).collect();
+        let Some(piece) =
+            ConvexPiece::from_points(&points).filter(|p| p.collider_shape().is_some())
+        else {
+            continue; // the random points fell flat
+        };
+        let file = dir.path().join(format!("{k}.stl"));
+        piece.to_mesh().write_stl_mm(&file).unwrap();
+        let loaded = load_solid(&file, MeshUnits::Mm, 0.05e-3).unwrap_or_else(|e| {
+            panic!("{shape} ({k}): {e}");
+        });
+        assert_eq!(loaded.solid.pieces.len(), 1, "{shape} ({k})");
+        assert!(
+            loaded.warnings.is_empty(),
+            "{shape} ({k}): {:?}",
+            loaded.warnings
+        );
+        assert!(
+            loaded.max_deviation_m < 1e-6,
+            "{shape} ({k}): {}",
+            loaded.max_deviation_m
+        );
+        let (a, b) = (volume(&loaded.solid), piece.to_mesh().volume());
+        assert!((a - b).abs() < 1e-6 * b, "{shape} ({k}): {a} vs {b}");
+    }
 }

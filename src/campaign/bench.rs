@@ -21,9 +21,9 @@
 //! Wall-clock figures: run it on an idle machine. Instruction counts, which do not depend on the
 //! load, are in `docs/performance.md`.
 
-use crate::campaign::records::{RecordSource, TrialSpec};
+use crate::campaign::records::RecordSource;
 use crate::campaign::replays::Replays;
-use crate::campaign::run::{CampaignOptions, RunOptions, Shard, all_trials, campaign, prepare};
+use crate::campaign::run::{CampaignOptions, RunOptions, Shard, campaign, prepare};
 use crate::campaign::scenario::Scenario;
 use crate::campaign::usage::Stopwatch;
 use crate::error::{Error, Result};
@@ -307,14 +307,14 @@ pub fn campaign_rows(scenario: &Scenario) -> Result<Vec<BenchRow>> {
     })?;
     let cache = scratch.path().join("cache");
     let mut rows = Vec::new();
-    for trial in one_manifold_trial_per_pair(scenario) {
-        let cell = &scenario.cells()[trial.cell];
+    for c in one_manifold_cell_per_pair(scenario) {
+        let cell = &scenario.cells()[c];
         let watch = Stopwatch::start(rayon::current_num_threads());
         let options = RunOptions {
             cache_dir: cache.clone(),
             progress: &(),
         };
-        prepare(scenario, &[trial], &options)?;
+        prepare(scenario, &[c], &options)?;
         let usage = watch.usage();
         let spec = &scenario.manifold;
         rows.push(BenchRow {
@@ -343,14 +343,13 @@ pub fn campaign_rows(scenario: &Scenario) -> Result<Vec<BenchRow>> {
     Ok(rows)
 }
 
-/// The first manifold-method trial of each pair the scenario registers against.
-fn one_manifold_trial_per_pair(scenario: &Scenario) -> Vec<TrialSpec> {
+/// The first manifold-method cell of each pair the scenario registers against.
+fn one_manifold_cell_per_pair(scenario: &Scenario) -> Vec<usize> {
     let cells = scenario.cells();
     let mut seen = Vec::new();
-    all_trials(scenario)
-        .into_iter()
-        .filter(|t| {
-            let cell = &cells[t.cell];
+    (0..cells.len())
+        .filter(|&c| {
+            let cell = &cells[c];
             let pair = (cell.geometry.clone(), cell.clearance_mm.to_bits());
             let first = cell.method == Method::Manifold && !seen.contains(&pair);
             if first {

@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::method::config::Method;
 use crate::method::trial::TrialResult;
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::io::{BufRead, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
@@ -160,17 +160,23 @@ pub fn index_records(path: &Path, repair: bool) -> Result<Vec<Entry>> {
     Ok(entries)
 }
 
+/// The trials a campaign (or one shard of it) runs, as the checks of its records ask for them:
+/// generated on demand, so that checking a folder takes memory in proportion to its records,
+/// not to the trials its scenario could ask for.
+pub trait TrialSet {
+    /// Trial `trial` of cell `cell`, when the set holds it.
+    fn spec(&self, cell: usize, trial: usize) -> Option<TrialSpec>;
+    /// How many trials the set holds.
+    fn count(&self) -> usize;
+}
+
 /// Checks that every entry is a trial of `wanted` (same seed, same cell conditions) and none
 /// repeats.
-pub fn check_entries_belong(entries: &[Entry], wanted: &[TrialSpec], path: &Path) -> Result<()> {
-    let wanted: BTreeMap<(usize, usize), (u64, u64)> = wanted
-        .iter()
-        .map(|t| ((t.cell, t.trial), (t.seed, t.condition)))
-        .collect();
+pub fn check_entries_belong(entries: &[Entry], wanted: &dyn TrialSet, path: &Path) -> Result<()> {
     let mut seen = BTreeSet::new();
     for e in entries {
         let key = (e.cell, e.trial);
-        let Some(&(seed, condition)) = wanted.get(&key).filter(|w| w.0 == e.seed) else {
+        let Some(spec) = wanted.spec(e.cell, e.trial).filter(|w| w.seed == e.seed) else {
             return Err(Error::file(
                 path,
                 format!(
@@ -179,14 +185,14 @@ pub fn check_entries_belong(entries: &[Entry], wanted: &[TrialSpec], path: &Path
                 ),
             ));
         };
-        if condition != e.condition {
+        if spec.condition != e.condition {
             return Err(Error::file(
                 path,
                 format!(
-                    "holds a record of trial {} of cell {} (seed {seed}) whose geometry, \
+                    "holds a record of trial {} of cell {} (seed {}) whose geometry, \
                      clearance, method or observation time are not that cell's: a record moved \
                      between cells, or a file of another campaign",
-                    e.trial, e.cell
+                    e.trial, e.cell, spec.seed
                 ),
             ));
         }
@@ -201,15 +207,15 @@ pub fn check_entries_belong(entries: &[Entry], wanted: &[TrialSpec], path: &Path
 }
 
 /// Checks that `entries` are exactly the trials of `wanted`, each once.
-pub fn check_complete(entries: &[Entry], wanted: &[TrialSpec], path: &Path) -> Result<()> {
+pub fn check_complete(entries: &[Entry], wanted: &dyn TrialSet, path: &Path) -> Result<()> {
     check_entries_belong(entries, wanted, path)?;
-    if entries.len() != wanted.len() {
+    if entries.len() != wanted.count() {
         return Err(Error::file(
             path,
             format!(
                 "holds {} of the {} trials expected",
                 entries.len(),
-                wanted.len()
+                wanted.count()
             ),
         ));
     }

@@ -10,7 +10,7 @@
 //! policy. A page is named `c{cell}-t{trial}-{outcome}.html` (cell and trial indices as in
 //! `trials.jsonl`), so the report lists them without reading a record.
 
-use crate::campaign::records::TrialSpec;
+use crate::campaign::records::{RecordSource, TrialSet, TrialSpec};
 use crate::campaign::scenario::Condition;
 use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
@@ -233,6 +233,31 @@ impl ReplayWriter {
                 .expect("no writer panicked")
                 .get_or_insert(e);
         }
+    }
+
+    /// The finished trials of `records` (of the campaign whose trials are `specs`) whose replay
+    /// the policy wants but the folder lacks, each with the outcome its record names: a run that
+    /// could not write them (a full disk), or was killed between a record and its page.
+    pub fn missing(
+        &self,
+        records: &dyn RecordSource,
+        specs: &dyn TrialSet,
+    ) -> Result<Vec<(TrialSpec, String)>> {
+        let mut missing = Vec::new();
+        if self.policy == Replays::None {
+            return Ok(missing);
+        }
+        records.for_each(&mut |r| {
+            let drawn = r.result.error_message.is_none() && self.policy.wants(r.trial, &r.result);
+            let outcome = &r.result.outcome;
+            if let Some(spec) = specs
+                .spec(r.cell, r.trial)
+                .filter(|spec| drawn && !self.folder.join(file_name(spec, outcome)).is_file())
+            {
+                missing.push((spec, outcome.clone()));
+            }
+        })?;
+        Ok(missing)
     }
 
     /// The campaign's outcome, or the first replay that could not be written.

@@ -18,7 +18,9 @@
 //! `INSERTION_AXES`. Stiffnesses and forces are drawn log-uniformly.
 
 use crate::campaign::records::TrialRecord;
-use crate::campaign::run::{Plan, Prepared, RunOptions, all_trials, prepare, run_trials};
+use crate::campaign::run::{
+    CampaignTrials, Plan, Prepared, RunOptions, Shard, prepare, run_trials,
+};
 use crate::campaign::scenario::{GainsOverride, Scenario};
 use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
@@ -193,7 +195,7 @@ fn lerp(lo: f64, hi: f64, u: f64) -> f64 {
 
 /// A Latin hypercube of `n` points in [0, 1]^d: each axis cut in `n` strata, one point per
 /// stratum, strata paired at random; the point at each stratum's centre (reproducible).
-fn latin_hypercube(n: usize, d: usize, seed: u64) -> Vec<Vec<f64>> {
+pub(crate) fn latin_hypercube(n: usize, d: usize, seed: u64) -> Vec<Vec<f64>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let columns: Vec<Vec<usize>> = (0..d)
         .map(|_| {
@@ -355,7 +357,7 @@ fn evaluate(
     let mut s = candidate.apply(scenario);
     s.trials = trials_per_cell;
     s.ensure_valid()?;
-    let specs = all_trials(&s);
+    let specs: Vec<_> = CampaignTrials::of(&s, Shard::WHOLE).iter().collect();
     let records: Vec<TrialRecord> = run_trials(&Plan::new(&s, prepared), &specs);
     let successes = records.iter().filter(|r| r.result.success).count();
     let peaks: Vec<f64> = records
@@ -397,7 +399,8 @@ pub fn tune(
         )));
     }
     let probe = candidates(1, options.seed, options.target)[0].apply(scenario);
-    let prepared = prepare(&probe, &all_trials(&probe), run)?;
+    let every_cell: Vec<usize> = (0..probe.cells().len()).collect();
+    let prepared = prepare(&probe, &every_cell, run)?;
     let mut alive = candidates(options.candidates, options.seed, options.target);
     let mut trials = options.first_trials.min(scenario.trials);
     let mut out = Vec::new();

@@ -44,9 +44,12 @@ pub struct MergeArgs {
     /// Shard result folders.
     #[arg(required = true)]
     pub dirs: Vec<PathBuf>,
-    /// Merged results folder (new or empty).
+    /// Merged results folder (new or empty, or with --resume one a merge was cut short in).
     #[arg(long)]
     pub out: PathBuf,
+    /// Complete a merge of these shards that was cut short in --out.
+    #[arg(long)]
+    pub resume: bool,
     /// Folder of cached manifolds, for the report's manifold figures (default: $XDG_CACHE_HOME/pegtwin or ~/.cache/pegtwin).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
@@ -123,8 +126,12 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
     let summary =
         report::write_campaign_report(&args.out, &scenario, &outcome.trials, &run.cache_dir)?;
     print!("{}", summary::summary_table(&summary));
+    let redrawn = match outcome.redrawn {
+        0 => String::new(),
+        n => format!(", {n} run again for the replays the folder lacked"),
+    };
     println!(
-        "{} trials ({} run now) in {}; results in {}",
+        "{} trials ({} run now{redrawn}) in {}; results in {}",
         outcome.count,
         outcome.ran,
         usage.describe(),
@@ -134,7 +141,7 @@ pub fn campaign_command(args: CampaignArgs) -> Result<i32> {
 }
 
 pub fn merge_command(args: MergeArgs) -> Result<i32> {
-    let (scenario, trials, count) = campaign::merge(&args.dirs, &args.out)?;
+    let (scenario, trials, count) = campaign::merge(&args.dirs, &args.out, args.resume)?;
     let cache_dir = cache::folder(args.cache_dir.as_deref())?;
     let summary = report::write_campaign_report(&args.out, &scenario, &trials, &cache_dir)?;
     print!("{}", summary::summary_table(&summary));

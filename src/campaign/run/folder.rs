@@ -1,8 +1,8 @@
 //! The results folder: `campaign.json` (the scenario as run, its fingerprint, the shard), the
 //! checks that a folder is new or holds this campaign, and the merge of shard folders into one.
 
-use super::shard_trials;
-use crate::campaign::records::{TrialsFile, check_complete, index_records, write_sorted};
+use super::CampaignTrials;
+use crate::campaign::records::{TrialSet, TrialsFile, check_complete, index_records, write_sorted};
 use crate::campaign::replays::{self};
 use crate::campaign::scenario::Scenario;
 use crate::error::{Error, Result};
@@ -145,14 +145,14 @@ pub fn read_finished(dir: &Path) -> Result<(CampaignFile, TrialsFile)> {
     }
     let path = dir.join(TRIALS_FILE);
     let entries = index_records(&path, false)?;
-    let wanted = shard_trials(&c.scenario, Shard::WHOLE);
-    if entries.len() < wanted.len() {
+    let wanted = CampaignTrials::of(&c.scenario, Shard::WHOLE);
+    if entries.len() < wanted.count() {
         return Err(Error::file(
             &path,
             format!(
                 "holds {} of {} trials: the campaign is not finished (--resume it)",
                 entries.len(),
-                wanted.len()
+                wanted.count()
             ),
         ));
     }
@@ -212,8 +212,10 @@ impl CampaignFile {
 
 /// Joins the shards in `dirs` into one campaign folder `out`: same scenario, every shard of the
 /// split once, every trial once. Returns the scenario and the merged `trials.jsonl`, in (cell,
-/// trial) order, with its number of trials. The shards' replays are copied too.
-pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, TrialsFile, usize)> {
+/// trial) order, with its number of trials. The shards' replays are copied too. With `resume`,
+/// `out` may hold this merge cut short (its `campaign.json` and some of the rest): every file is
+/// written again from the shards, each whole or absent after a failure.
+pub fn merge(dirs: &[PathBuf], out: &Path, resume: bool) -> Result<(Scenario, TrialsFile, usize)> {
     let first = dirs
         .first()
         .ok_or_else(|| Error::Input("merge: expected at least one shard folder".into()))?;
@@ -245,7 +247,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, TrialsFile, usiz
         }
         let path = dir.join(TRIALS_FILE);
         let entries = index_records(&path, false)?;
-        check_complete(&entries, &shard_trials(&c.scenario, c.shard), &path)?;
+        check_complete(&entries, &CampaignTrials::of(&c.scenario, c.shard), &path)?;
         parts.push((path, entries));
     }
     if shards.len() != count {
@@ -274,7 +276,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(Scenario, TrialsFile, usiz
         shard: Shard::WHOLE,
         ..head
     };
-    if check_folder(out, &described, false)? {
+    if check_folder(out, &described, resume)? {
         create_folder(out, &described)?;
     }
     let path = out.join(TRIALS_FILE);

@@ -14,15 +14,17 @@
 //! `--resume` drops that line, keeps the finished trials and runs the rest.
 
 mod folder;
+mod trials;
 
 pub use folder::{
     CAMPAIGN_FILE, CampaignFile, Shard, TRIALS_FILE, ensure_new_or_empty, merge, read_campaign,
     read_finished,
 };
 use folder::{check_folder, create_folder};
+pub use trials::{CampaignTrials, trial_seed};
 
 use crate::campaign::records::{
-    TrialRecord, TrialSpec, TrialsFile, check_complete, check_entries_belong, condition_key,
+    TrialRecord, TrialSet, TrialSpec, TrialsFile, check_complete, check_entries_belong,
     index_records, write_sorted,
 };
 use crate::campaign::replays::{ReplayWriter, Replays};
@@ -32,7 +34,6 @@ use crate::error::{Error, Result};
 use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::manifold::Manifold;
 use crate::method::manifold::cache::{self, BuildProgress, Wanted};
-use crate::method::seeds;
 use crate::method::session::Recorder;
 use crate::method::trial::{ObservingTrial, TrialResult, errored_trial, finish_trial, run_trial};
 use crate::replay::Replay;
@@ -44,43 +45,6 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-
-/// The seed of trial `index` of a cell (see [`seeds::trial`]: the same for every method of a pair).
-pub fn trial_seed(scenario_seed: u64, cell: &Condition, index: usize) -> u64 {
-    seeds::trial(scenario_seed, &cell.geometry, cell.clearance_mm, index)
-}
-
-/// Trial `trial` of the cell numbered `index`, seeded from the scenario's seed.
-fn trial_spec(scenario_seed: u64, (index, cell): (usize, &Condition), trial: usize) -> TrialSpec {
-    TrialSpec {
-        cell: index,
-        trial,
-        seed: trial_seed(scenario_seed, cell, trial),
-        condition: condition_key(&cell.geometry, cell.clearance_mm, cell.method, cell.t_obs_s),
-    }
-}
-
-/// Every trial of the scenario in cell-major order.
-pub fn all_trials(scenario: &Scenario) -> Vec<TrialSpec> {
-    let cells = scenario.cells();
-    let mut out = Vec::with_capacity(cells.len() * scenario.trials);
-    for (c, cell) in cells.iter().enumerate() {
-        for t in 0..scenario.trials {
-            out.push(trial_spec(scenario.seed, (c, cell), t));
-        }
-    }
-    out
-}
-
-/// The trials of one shard.
-pub fn shard_trials(scenario: &Scenario, shard: Shard) -> Vec<TrialSpec> {
-    all_trials(scenario)
-        .into_iter()
-        .enumerate()
-        .filter(|(n, _)| shard.holds(*n))
-        .map(|(_, t)| t)
-        .collect()
-}
 
 /// What a campaign reports while it runs, for a progress display (the library prints nothing).
 pub trait CampaignProgress: BuildProgress {
@@ -175,23 +139,20 @@ impl Prepared {
     }
 }
 
-/// Builds the pairs and loads (or builds and caches) the manifolds of `trials`. The missing
+/// Builds the pairs and loads (or builds and caches) the manifolds of the cells numbered
+/// `cells` (in the scenario's cell order). The missing
 /// manifolds are built side by side ([`cache::resolve_all`]: every episode of every build goes to
 /// the one pool, the costliest pair's first, so the cores do not idle at the end of each build
 /// while its last episodes run; issue 17). Each file is the same as when built alone; when builds
 /// fail, the first failing pair's error (in the scenario's order) is returned, after the others
 /// were built and cached.
-pub fn prepare(
-    scenario: &Scenario,
-    trials: &[TrialSpec],
-    options: &RunOptions,
-) -> Result<Prepared> {
-    let cells = scenario.cells();
+pub fn prepare(scenario: &Scenario, cells: &[usize], options: &RunOptions) -> Result<Prepared> {
+    let conditions = scenario.cells();
     let mut pairs = BTreeMap::new();
     let mut robots = BTreeMap::new();
     let mut registering = Vec::new();
-    for spec in trials {
-        let cell = &cells[spec.cell];
+    for &c in cells {
+        let cell = &conditions[c];
         let key = pair_key(cell);
         if !pairs.contains_key(&key) {
             pairs.insert(key.clone(), scenario.pair(cell)?);
@@ -235,21 +196,20 @@ pub fn single_trial(
     trial: usize,
     options: &RunOptions,
 ) -> Result<(TrialSpec, Prepared)> {
-    let cells = scenario.cells();
-    let Some(condition) = cells.get(cell) else {
+    let trials = CampaignTrials::of(scenario, Shard::WHOLE);
+    if cell >= trials.cells() {
         return Err(Error::Input(format!(
             "--cell {cell}: the scenario has {} cells, numbered from 0 as in trials.jsonl",
-            cells.len()
+            trials.cells()
         )));
-    };
-    if trial >= scenario.trials {
+    }
+    let Some(spec) = trials.spec(cell, trial) else {
         return Err(Error::Input(format!(
             "--trial {trial}: the scenario runs {} trials per cell, numbered from 0 as in trials.jsonl",
             scenario.trials
         )));
-    }
-    let spec = trial_spec(scenario.seed, (cell, condition), trial);
-    let prepared = prepare(scenario, std::slice::from_ref(&spec), options)?;
+    };
+    let prepared = prepare(scenario, &[cell], options)?;
     Ok((spec, prepared))
 }
 
@@ -494,6 +454,8 @@ pub struct CampaignRun {
     pub count: usize,
     /// Trials run now (the rest were already there).
     pub ran: usize,
+    /// Finished trials run again to draw the replays their folder lacked (`--resume`).
+    pub redrawn: usize,
 }
 
 /// Runs (or completes, with `resume`) a campaign into `out`.
@@ -528,19 +490,26 @@ pub(crate) fn campaign_with(
     let described = CampaignFile::new(scenario, options.shard);
     let is_new = check_folder(out, &described, options.resume)?;
     let trials_path = out.join(TRIALS_FILE);
+    let wanted = CampaignTrials::of(scenario, options.shard);
     let done = index_records(&trials_path, true)?;
-    let finished: BTreeSet<(usize, usize)> = done.iter().map(|e| (e.cell, e.trial)).collect();
-    let wanted = shard_trials(scenario, options.shard);
-    let mut pending: Vec<TrialSpec> = wanted
-        .iter()
-        .filter(|t| !finished.contains(&(t.cell, t.trial)))
-        .copied()
-        .collect();
-    interleave_cells(&mut pending);
     check_entries_belong(&done, &wanted, &trials_path)?;
-    let resumed = done.len();
+    let finished: BTreeSet<(usize, usize)> = done.iter().map(|e| (e.cell, e.trial)).collect();
     drop(done);
-    let prepared = prepare(scenario, &pending, run)?;
+    let resumed = finished.len();
+    let redraw = match runner.sharing {
+        Some(replays) if resumed > 0 => {
+            let records = TrialsFile {
+                path: trials_path.clone(),
+            };
+            replays.missing(&records, &wanted)?
+        }
+        _ => Vec::new(),
+    };
+    let mut cells = unfinished_cells(&wanted, &finished);
+    cells.extend(redraw.iter().map(|(spec, _)| spec.cell));
+    cells.sort_unstable();
+    cells.dedup();
+    let prepared = prepare(scenario, &cells, run)?;
     if is_new {
         create_folder(out, &described)?;
     }
@@ -550,7 +519,7 @@ pub(crate) fn campaign_with(
         .open(&trials_path)
         .map_err(|e| Error::file(&trials_path, format!("cannot open for appending: {e}")))?;
     let writer = Mutex::new(file);
-    run.progress.trials_started(wanted.len(), resumed);
+    run.progress.trials_started(wanted.count(), resumed);
     let append = |record: &TrialRecord| -> Result<()> {
         let mut line = serde_json::to_string(record).expect("record serialises");
         line.push('\n');
@@ -562,9 +531,10 @@ pub(crate) fn campaign_with(
         Ok(())
     };
     let plan = Plan::new(scenario, &prepared);
-    let ran = stream_trials_with(&plan, &pending, runner, run.progress, &append);
+    let ran = stream_rounds(&plan, &wanted, &finished, runner, run.progress, &append);
     run.progress.trials_finished();
     ran?;
+    redraw_replays(&plan, &redraw, runner.one)?;
     let entries = index_records(&trials_path, false)?;
     check_complete(&entries, &wanted, &trials_path)?;
     let trials = entries.len();
@@ -572,52 +542,71 @@ pub(crate) fn campaign_with(
     Ok(CampaignRun {
         trials: TrialsFile { path: trials_path },
         count: trials,
-        ran: pending.len(),
+        ran: trials - resumed,
+        redrawn: redraw.len(),
     })
 }
 
-/// Puts `trials` in trial-major order (trial 0 of every cell, then trial 1, ...): every cell
-/// advances together, so a stopped run holds a like share of each cell. The pieces they run in
-/// keep that order, longest first within each round ([`stream_trials_with`]). Results do not
-/// depend on the order: a trial is a function of its seed.
-fn interleave_cells(trials: &mut [TrialSpec]) {
-    trials.sort_by_key(|t| (t.trial, t.cell));
+/// Runs again, each alone, the finished trials whose replay is missing ([`ReplayWriter::missing`]),
+/// for their replays only: their records stay as they are (a trial is a function of its seed; one
+/// that comes out otherwise than its record is an error naming it, and gets no page).
+fn redraw_replays(plan: &Plan, redraw: &[(TrialSpec, String)], one: &RunOne<'_>) -> Result<()> {
+    schedule::try_in_order(redraw, |(spec, outcome)| {
+        let again = guarded(|| one(plan, spec)).map_err(|m| {
+            Error::Input(format!(
+                "trial {} of cell {}, run again to draw its replay: {m}",
+                spec.trial, spec.cell
+            ))
+        })?;
+        if again.outcome != *outcome {
+            return Err(Error::Input(format!(
+                "trial {} of cell {} came out {} where its record says {outcome}: its replay is \
+                 not drawn (was the campaign run by another build of pegtwin?)",
+                spec.trial, spec.cell, again.outcome
+            )));
+        }
+        Ok(())
+    })
+}
+
+/// The cells that hold a trial of `wanted` not yet `finished`, in the scenario's cell order.
+fn unfinished_cells(wanted: &CampaignTrials, finished: &BTreeSet<(usize, usize)>) -> Vec<usize> {
+    let mut done_in = vec![0usize; wanted.cells()];
+    for &(cell, _) in finished {
+        done_in[cell] += 1;
+    }
+    (0..wanted.cells())
+        .filter(|&c| done_in[c] < wanted.held_in_cell(c))
+        .collect()
+}
+
+/// Runs the trials of `wanted` not yet `finished` ([`stream_trials_with`]), in rounds of trial
+/// numbers, each listed when it starts ([`CampaignTrials::round_len`]): a campaign's plan stays in
+/// memory proportional to its cells however many trials it asks for. A round's pieces all run
+/// before the next round is listed; a campaign of a few thousand trials is one round.
+fn stream_rounds(
+    plan: &Plan,
+    wanted: &CampaignTrials,
+    finished: &BTreeSet<(usize, usize)>,
+    runner: &Runner<'_>,
+    progress: &dyn CampaignProgress,
+    on_done: &(dyn Fn(&TrialRecord) -> Result<()> + Sync),
+) -> Result<()> {
+    let per_round = wanted.round_len();
+    for start in (0..wanted.per_cell()).step_by(per_round) {
+        let pending: Vec<TrialSpec> = (wanted.round(start..start.saturating_add(per_round)))
+            .filter(|t| !finished.contains(&(t.cell, t.trial)))
+            .collect();
+        if !pending.is_empty() {
+            stream_trials_with(plan, &pending, runner, progress, on_done)?;
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn scenario(trials: usize) -> Scenario {
-        Scenario::parse(&format!(
-            "name = \"t\"\ntrials = {trials}\ngeometries = [\"cross\", \"key\"]\nclearances_mm = [0.5]\nt_obs_s = [6.0, 8.0]\nmethods = [\"manifold\", \"direct\"]\n"
-        ))
-        .unwrap()
-    }
-
-    #[test]
-    fn shards_split_the_trials_exactly_once() {
-        let s = scenario(5);
-        let all = all_trials(&s);
-        assert_eq!(all.len(), 2 * 3 * 5);
-        let mut seen = BTreeSet::new();
-        for i in 0..4 {
-            for t in shard_trials(&s, Shard { index: i, count: 4 }) {
-                assert!(seen.insert((t.cell, t.trial)));
-            }
-        }
-        assert_eq!(seen.len(), all.len());
-    }
-
-    #[test]
-    fn seeds_are_shared_across_methods_and_differ_across_pairs_and_trials() {
-        let s = scenario(3);
-        let cells = s.cells();
-        let seed = |c: usize, t: usize| trial_seed(s.seed, &cells[c], t);
-        assert_eq!(seed(0, 1), seed(2, 1)); // cross manifold 6 s vs cross direct
-        assert_ne!(seed(0, 1), seed(0, 2));
-        assert_ne!(seed(0, 1), seed(3, 1)); // key
-    }
 
     #[test]
     fn shard_parsing_names_the_flag() {

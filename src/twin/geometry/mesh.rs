@@ -508,14 +508,22 @@ fn load_convex_parts(dir: &Path, units: MeshUnits, half_gap_m: f64) -> Result<Lo
     })
 }
 
+/// One part in one file: its convex hull when the part is convex (a cone, a ball, a chamfered
+/// pin), its exact pieces when it is a stack of extrusions ([`mesh_part`]), or else parry's
+/// V-HACD pieces, when they stand closer to the surface than the hull does.
 fn load_and_decompose(path: &Path, units: MeshUnits, half_gap_m: f64) -> Result<LoadedSolid> {
     let soup = read_mesh(path, units)?;
-    let surface = trimesh(&soup, path)?;
-    let pieces = match super::stack::stack_decomposition(&soup) {
-        Some(pieces) => pieces,
-        None => vhacd_pieces(&surface, path)?,
+    let part = mesh_part(&soup, path)?;
+    let (pieces, dev) = if part.pieces.len() > 1 || part.deviation_m <= HULL_TOLERANCE_M {
+        (part.pieces, part.deviation_m)
+    } else {
+        let surface = trimesh(&soup, path)?;
+        let pieces = vhacd_pieces(&surface, path)?;
+        match surface_deviation(&pieces, &soup, &surface) {
+            dev if dev < part.deviation_m => (pieces, dev),
+            _ => (part.pieces, part.deviation_m),
+        }
     };
-    let dev = surface_deviation(&pieces, &soup, &surface);
     let mut warnings = Vec::new();
     if dev > half_gap_m {
         warnings.push(format!(
