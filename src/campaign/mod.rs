@@ -2,6 +2,7 @@
 //! figures, gain tuning and the regression gate.
 
 pub mod bench;
+pub mod calibrate;
 pub mod check;
 pub mod records;
 pub mod replays;

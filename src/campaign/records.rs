@@ -265,6 +265,12 @@ impl RecordSource for [TrialRecord] {
     }
 }
 
+impl RecordSource for Vec<TrialRecord> {
+    fn for_each(&self, each: &mut dyn FnMut(&TrialRecord)) -> Result<()> {
+        self.as_slice().for_each(each)
+    }
+}
+
 /// A finished `trials.jsonl`, read afresh on each pass: the summary and the report stream it
 /// instead of loading it (its records in file order, which a finished campaign keeps sorted).
 pub struct TrialsFile {

@@ -16,6 +16,7 @@ use std::path::PathBuf;
 
 mod assembly;
 mod bench;
+mod calibrate;
 mod campaign;
 mod choices;
 mod progress;
@@ -83,6 +84,9 @@ pub enum Command {
     Check(CheckArgs),
     /// Search the observation and insertion gains for the best success rate and lowest force.
     Tune(TuneArgs),
+    /// Fit the real cell's [cell] values to figures measured on it, and predict the figures
+    /// held out (posterior, calibrated [cell] section, report).
+    Calibrate(calibrate::CalibrateArgs),
     /// Measure the speed of a campaign's pieces on this machine (arm physics, a sampling episode,
     /// a trial, a registration), with the ratio to real time.
     Bench(BenchArgs),
@@ -261,6 +265,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Merge(args) => campaign::merge_command(args),
         Command::Check(args) => campaign::check_command(args),
         Command::Tune(args) => campaign::tune_command(args),
+        Command::Calibrate(args) => calibrate::calibrate_command(args),
         Command::Bench(args) => bench::bench_command(args),
     }
 }

@@ -91,6 +91,10 @@ pub struct Scenario {
     /// The real cell's imperfections: the profile and the ranges of its draws (`[cell]`).
     #[serde(default, skip_serializing_if = "RealCell::is_ideal")]
     pub cell: RealCell,
+    /// A file whose `[cell]` section is this scenario's (a calibration's `cell.toml`), relative
+    /// to the scenario file; read with the scenario, which then holds the section itself.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell_file: Option<PathBuf>,
     /// Physics for some pairs only, over `[physics]` (a pair whose contact solve needs more
     /// passes than the rest, so that the others keep their physics and their records).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -176,9 +180,39 @@ impl Scenario {
     /// Parses and validates scenario text, loading its assemblies from paths relative to `dir`.
     pub fn parse_in(text: &str, dir: &Path) -> Result<Self> {
         let mut scenario: Scenario = crate::toml_input::parse(text).map_err(Error::Input)?;
+        scenario.read_cell_file(text, dir)?;
         scenario.load_assemblies(dir)?;
         scenario.ensure_valid()?;
         Ok(scenario)
+    }
+
+    /// Reads `cell_file` (relative to `dir`) into `cell`: the scenario then holds the section
+    /// itself, as a campaign folder records it. A scenario giving both is refused.
+    fn read_cell_file(&mut self, text: &str, dir: &Path) -> Result<()> {
+        let Some(file) = self.cell_file.take() else {
+            return Ok(());
+        };
+        let given: toml::Value = toml::from_str(text).map_err(|e| Error::Input(e.to_string()))?;
+        if given.get("cell").is_some() {
+            return Err(Error::Input(format!(
+                "cell_file = {:?} and a [cell] section: give one of them",
+                file.display().to_string()
+            )));
+        }
+        #[derive(Deserialize, Serialize)]
+        #[serde(deny_unknown_fields)]
+        struct CellFile {
+            cell: RealCell,
+        }
+        let path = dir.join(&file);
+        let cell_text = crate::files::read_text(&path)?;
+        let read: CellFile =
+            crate::toml_input::parse(&cell_text).map_err(|e| Error::file(&path, e))?;
+        read.cell
+            .ensure_valid()
+            .map_err(|e| Error::file(&path, format!("[cell]: {e}")))?;
+        self.cell = read.cell;
+        Ok(())
     }
 
     /// Loads the assembly files, their paths relative to `dir` (a campaign folder records it:
@@ -760,5 +794,37 @@ friction = 0.2
             let e = Scenario::parse(&format!("{TWO_PAIRS}{extra}")).unwrap_err();
             assert!(e.to_string().contains(want), "{want}: {e}");
         }
+    }
+
+    #[test]
+    fn a_cell_file_is_read_into_the_scenario_which_then_holds_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let cell = "# calibrated\n[cell]\ncontact_friction = [0.4, 0.6]\n";
+        std::fs::write(dir.path().join("cell.toml"), cell).unwrap();
+        let text = format!("{MINIMAL}cell_file = \"cell.toml\"\n");
+        let s = Scenario::parse_in(&text, dir.path()).unwrap();
+        assert_eq!(s.cell.contact_friction, [0.4, 0.6]);
+        assert!(s.cell_file.is_none());
+        let inline = Scenario::parse(&format!("{MINIMAL}[cell]\ncontact_friction = [0.4, 0.6]\n"));
+        assert_eq!(s.fingerprint(), inline.unwrap().fingerprint());
+        let both = format!("{text}[cell]\nprofile = \"real\"\n");
+        let e = Scenario::parse_in(&both, dir.path())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("give one of them"), "{e}");
+        std::fs::write(
+            dir.path().join("cell.toml"),
+            "[cell]\ncontact_friction = [0.4, 9]\n",
+        )
+        .unwrap();
+        let e = Scenario::parse_in(&text, dir.path())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("cell.toml") && e.contains("contact_friction"),
+            "{e}"
+        );
+        let e = Scenario::parse_in(&text.replace("cell.toml", "none.toml"), dir.path());
+        assert!(e.unwrap_err().to_string().contains("none.toml"));
     }
 }
