@@ -53,7 +53,7 @@ fn targets(cell: &serde_json::Value, fit_force: Option<f64>, samples: usize) -> 
     let mut text = format!(
         "free = [\"contact_friction\"]\nsamples = {samples}\nseed = 3\n[prior]\n\
          contact_friction = [0.1, 1.0]\n\
-         [[target]]\nrole = \"fit\"\nfigure = \"success\"\nmethod = \"direct\"\n\
+         [[target]]\nname = \"success & <fit>\"\nrole = \"fit\"\nfigure = \"success\"\nmethod = \"direct\"\n\
          successes = {}\ntrials = {}\n\
          [[target]]\nrole = \"hold_out\"\nfigure = \"peak_fz_failure_n\"\nmethod = \"direct\"\n\
          mean = {}\nstd = {}\nn = {}\n",
@@ -129,6 +129,11 @@ fn calibrate_recovers_a_known_friction_flags_the_unreachable_and_resumes() {
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        report.contains("success &amp; &lt;fit&gt;"),
+        "labels escaped: {report}"
+    );
     let cell_toml = std::fs::read_to_string(out.join("cell.toml")).unwrap();
     assert!(
         cell_toml.contains("[cell]") && cell_toml.contains("contact_friction"),

@@ -4,6 +4,7 @@
 
 use super::targets::{Measured, Role, Targets};
 use super::{Posterior, calibrated_cell};
+use crate::campaign::report::escape;
 use crate::campaign::scenario::Scenario;
 use crate::error::Result;
 use std::fmt::Write;
@@ -65,8 +66,8 @@ fn page(scenario: &Scenario, targets: &Targets, p: &Posterior) -> String {
          </head><body>\n<h1>Calibration of {}</h1>\n<p>{} draws over the prior (Latin hypercube), \
          {} trials each; the posterior weighs {} points of the prior, {:.0} of them \
          effectively.</p>\n",
-        scenario.name,
-        scenario.name,
+        escape(&scenario.name),
+        escape(&scenario.name),
         p.evaluations.len(),
         p.trials_per_draw,
         p.points.len(),
@@ -113,16 +114,14 @@ fn page(scenario: &Scenario, targets: &Targets, p: &Posterior) -> String {
         let _ = writeln!(
             html,
             "<tr><td>{}</td><td>{role}</td><td>{}</td><td>{median}</td><td>{interval}</td><td>{mark}</td></tr>",
-            t.label,
+            escape(&t.label),
             shown(&t.measured)
         );
     }
     html += "</table>\n";
     if !p.unreachable.is_empty() {
-        let names: Vec<&str> = p
-            .unreachable
-            .iter()
-            .map(|&k| targets.targets[k].label.as_str())
+        let names: Vec<String> = (p.unreachable.iter())
+            .map(|&k| escape(&targets.targets[k].label))
             .collect();
         let _ = writeln!(
             html,

@@ -13,6 +13,7 @@ mod charts;
 mod page;
 
 use charts::{FigureTally, draw_errors, draw_fz, draw_success, draw_tune, render, success_series};
+pub(crate) use page::escape;
 use page::html;
 
 use super::summary::{Summary, SummaryTally, two_passes};

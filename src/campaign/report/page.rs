@@ -7,7 +7,8 @@ use crate::campaign::replays::{self, ReplayLink};
 use crate::campaign::scenario::Scenario;
 use crate::campaign::summary::{AXES, MeanStd, Summary};
 
-pub(super) fn escape(s: &str) -> String {
+/// `s` safe as HTML text.
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
