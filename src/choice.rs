@@ -84,6 +84,7 @@ mod tests {
         serde_names_agree::<Solver>();
         serde_names_agree::<Replays>();
         serde_names_agree::<MeshUnits>();
+        serde_names_agree::<crate::method::manifold::cache::Sampler>();
     }
 
     #[test]

@@ -419,3 +419,80 @@ fn plot_draws_a_manifold_file_and_a_csv_and_refuses_a_bad_one() {
     assert!(stderr(&o).contains("bad.manifold"), "{}", stderr(&o));
     assert!(!out.join("bad.png").exists());
 }
+
+/// `--sampler geometric`: the poses where the parts touch, from their shapes alone; the same
+/// file on any number of threads; a trial builds it into the cache under a key of its own.
+#[test]
+fn the_geometric_sampler_builds_from_the_parts_and_serves_a_trial() {
+    let dir = tempfile::tempdir().unwrap();
+    let build = |name: &str, threads: &str| {
+        let out = dir.path().join(name);
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_pegtwin"))
+            .args(["manifold", "build", "--geometry", "cross", "--clearance-mm"])
+            .args(["0.5", "--sampler", "geometric", "--points", "1000", "--out"])
+            .arg(&out)
+            .env("RAYON_NUM_THREADS", threads)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let one = build("one.manifold", "1");
+    let two = build("two.manifold", "2");
+    assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&two).unwrap());
+    let info = pegtwin(&["manifold", "info", s(&one), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(v["points"], 1000);
+    let source = v["meta"]["source"].as_str().unwrap();
+    assert!(source.contains("--sampler geometric"), "{source}");
+    let r = &v["ranges_m_rad"];
+    for axis in 0..2 {
+        for end in 0..2 {
+            // Half the clearance, and what a tilt near the mouth adds to the tip.
+            assert!(r[axis][end].as_f64().unwrap().abs() < 0.5e-3, "{r}");
+        }
+    }
+    assert!(r[2][0].as_f64().unwrap() >= -20e-3 && r[2][1].as_f64().unwrap() <= -1e-3);
+    let bad = pegtwin(
+        &[
+            "manifold",
+            "build",
+            "--geometry",
+            "cross",
+            "--clearance-mm",
+            "0.5",
+        ]
+        .into_iter()
+        .chain([
+            "--sampler",
+            "geometrical",
+            "--out",
+            s(&dir.path().join("bad")),
+        ])
+        .collect::<Vec<_>>(),
+    );
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(stderr(&bad).contains("geometric"), "{}", stderr(&bad));
+    let cache = dir.path().join("cache");
+    let trial = pegtwin(&[
+        "trial",
+        "--geometry",
+        "cross",
+        "--clearance-mm",
+        "0.5",
+        "--sampler",
+        "geometric",
+        "--profile",
+        "ideal",
+        "--cache-dir",
+        s(&cache),
+        "--json",
+    ]);
+    assert!(trial.status.success(), "{}", stderr(&trial));
+    let files: Vec<String> = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(files.len(), 1, "{files:?}");
+    assert!(files[0].starts_with("cross-0.5mm-geo"), "{files:?}");
+}

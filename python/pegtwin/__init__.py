@@ -51,6 +51,7 @@ def trial(
     cache_dir: Optional[PathLike] = None,
     assembly: Optional[PathLike] = None,
     profile: str = "real",
+    sampler: str = "robot",
 ) -> Dict[str, Any]:
     """Runs one trial of the paper's experiment (paper V-A) and returns its record.
 
@@ -75,6 +76,9 @@ def trial(
             instead of ``geometry`` and ``clearance_mm``; its clearance is measured.
         profile: ``real`` (the real cell's imperfections drawn from the seed; the record's
             ``real_cell`` holds the draw) or ``ideal`` (every imperfection off).
+        sampler: how the cached reference manifold is made when ``manifold`` is not given:
+            ``robot`` (the arm probes the hole in simulation, paper IV-B) or ``geometric``
+            (the poses where the parts touch, from their shapes alone).
 
     Raises:
         ValueError: an argument is out of range or unknown, or a file is unreadable.
@@ -92,6 +96,7 @@ def trial(
         cache_dir=_path(cache_dir),
         assembly=_path(assembly),
         profile=profile,
+        sampler=sampler,
     )
     return json.loads(text)
 

@@ -19,6 +19,7 @@ def trial_json(
     cache_dir: Optional[str] = None,
     assembly: Optional[str] = None,
     profile: str = "real",
+    sampler: str = "robot",
 ) -> str: ...
 def campaign(
     scenario: str,

@@ -15,7 +15,7 @@ use pegtwin::choice::Choice;
 use pegtwin::error::Error;
 use pegtwin::method::config::{Method, Start};
 use pegtwin::method::env::{EnvConfig, PegEnv, Step, StepInfo};
-use pegtwin::method::manifold::cache::{self, BuildProgress};
+use pegtwin::method::manifold::cache::{self, BuildProgress, Sampler};
 use pegtwin::method::manifold::{Manifold, file};
 use pegtwin::method::register::{RegistrationConfig, Solver, register as register_hole};
 use pegtwin::method::request::TrialRequest;
@@ -56,7 +56,7 @@ fn pair_source(
 /// One trial (`pegtwin trial --json`): the record as JSON text. Values left out take the
 /// command line's defaults.
 #[pyfunction]
-#[pyo3(signature = (geometry, clearance_mm, seed, method, start, t_obs_s=None, offset_mm=None, offset_deg=None, manifold=None, cache_dir=None, assembly=None, profile="real"))]
+#[pyo3(signature = (geometry, clearance_mm, seed, method, start, t_obs_s=None, offset_mm=None, offset_deg=None, manifold=None, cache_dir=None, assembly=None, profile="real", sampler="robot"))]
 #[allow(clippy::too_many_arguments)]
 fn trial_json(
     py: Python<'_>,
@@ -72,6 +72,7 @@ fn trial_json(
     cache_dir: Option<PathBuf>,
     assembly: Option<PathBuf>,
     profile: &str,
+    sampler: &str,
 ) -> PyResult<String> {
     let defaults = TrialRequest {
         pair: pair_source(geometry, clearance_mm, assembly)?,
@@ -85,6 +86,7 @@ fn trial_json(
         offset_mm: offset_mm.unwrap_or(defaults.offset_mm),
         offset_deg: offset_deg.unwrap_or(defaults.offset_deg),
         manifold,
+        sampler: Sampler::by_name(sampler).map_err(py_err)?,
         cache_dir,
         profile: Profile::by_name(profile).map_err(py_err)?,
         ..defaults

@@ -14,7 +14,8 @@
 //!
 //! With a scenario (`pegtwin bench --campaign FILE`), the campaign's own figures too, each in
 //! a scratch folder that is removed afterwards: every reference manifold it registers against,
-//! built alone on all cores into an empty cache; the whole campaign with those manifolds cached;
+//! built alone on all cores into an empty cache, by the robot sampler and by the geometric one
+//! (the scenario's own sampler's file is the one the cached campaign uses); the whole campaign with those manifolds cached;
 //! and the whole campaign again from an empty cache (its manifolds built side by side, then its
 //! trials), each with its CPU time, how busy it kept the cores, and simulated over wall time.
 //!
@@ -26,10 +27,13 @@ use crate::campaign::replays::Replays;
 use crate::campaign::run::{CampaignOptions, RunOptions, Shard, campaign, prepare};
 use crate::campaign::scenario::Scenario;
 use crate::campaign::usage::Stopwatch;
+use crate::choice::Choice;
 use crate::error::{Error, Result};
 use crate::method::config::{Method, TrialConfig};
 use crate::method::env::{EnvConfig, PegEnv};
 use crate::method::manifold::build::{SamplerConfig, run_episode};
+use crate::method::manifold::cache::Sampler;
+use crate::method::manifold::geometric::DRAWS_PER_POINT;
 use crate::method::manifold::synthetic::SyntheticPair;
 use crate::method::manifold::{DEFAULT_NORMAL_K, Manifold, ManifoldMeta, UNITS};
 use crate::method::register::{RegistrationConfig, register};
@@ -308,29 +312,13 @@ pub fn campaign_rows(scenario: &Scenario) -> Result<Vec<BenchRow>> {
     let cache = scratch.path().join("cache");
     let mut rows = Vec::new();
     for c in one_manifold_cell_per_pair(scenario) {
-        let cell = &scenario.cells()[c];
-        let watch = Stopwatch::start(rayon::current_num_threads());
-        let options = RunOptions {
-            cache_dir: cache.clone(),
-            progress: &(),
-        };
-        prepare(scenario, &[c], &options)?;
-        let usage = watch.usage();
-        let spec = &scenario.manifold;
-        rows.push(BenchRow {
-            name: format!("manifold_{}_{}mm", cell.geometry, cell.clearance_mm),
-            what: format!(
-                "reference manifold, {} at {} mm, {} episodes of {} s, built alone: {}",
-                cell.geometry,
-                cell.clearance_mm,
-                spec.episodes,
-                spec.episode_s,
-                usage.describe()
-            ),
-            value: usage.wall_s,
-            unit: "s".into(),
-            real_time_factor: Some(spec.episodes as f64 * spec.episode_s / usage.wall_s),
-        });
+        let robot = manifold_row(scenario, c, Sampler::Robot, &cache, scratch.path())?;
+        let mut geometric = manifold_row(scenario, c, Sampler::Geometric, &cache, scratch.path())?;
+        geometric.what += &format!(
+            ", {:.1} x faster than the robot's",
+            robot.value / geometric.value
+        );
+        rows.extend([robot, geometric]);
     }
     let cold_cache = scratch.path().join("empty-cache");
     for (name, cache, how) in [
@@ -341,6 +329,58 @@ pub fn campaign_rows(scenario: &Scenario) -> Result<Vec<BenchRow>> {
         rows.push(campaign_row(scenario, name, &out, cache, how)?);
     }
     Ok(rows)
+}
+
+/// The reference manifold of cell `c` built alone by `sampler` on all cores: into `cache` when
+/// it is the scenario's own sampler (the cached campaign then uses it), else into a folder of
+/// `scratch` of its own.
+fn manifold_row(
+    scenario: &Scenario,
+    c: usize,
+    sampler: Sampler,
+    cache: &Path,
+    scratch: &Path,
+) -> Result<BenchRow> {
+    let own = scenario.manifold.sampler == sampler;
+    let mut scenario = scenario.clone();
+    scenario.manifold.sampler = sampler;
+    let cell = &scenario.cells()[c];
+    let watch = Stopwatch::start(rayon::current_num_threads());
+    let options = RunOptions {
+        cache_dir: if own {
+            cache.to_path_buf()
+        } else {
+            scratch.join(format!("{}-cache", sampler.name()))
+        },
+        progress: &(),
+    };
+    prepare(&scenario, &[c], &options)?;
+    let usage = watch.usage();
+    let spec = &scenario.manifold;
+    let how = match sampler {
+        Sampler::Robot => format!("{} episodes of {} s", spec.episodes, spec.episode_s),
+        Sampler::Geometric => format!("{} contact poses drawn", DRAWS_PER_POINT * spec.points),
+    };
+    Ok(BenchRow {
+        name: format!(
+            "manifold_{}_{}_{}mm",
+            sampler.name(),
+            cell.geometry,
+            cell.clearance_mm
+        ),
+        what: format!(
+            "reference manifold by the {} sampler, {} at {} mm, {how}, built alone: {}",
+            sampler.name(),
+            cell.geometry,
+            cell.clearance_mm,
+            usage.describe()
+        ),
+        value: usage.wall_s,
+        unit: "s".into(),
+        real_time_factor: sampler
+            .is_robot()
+            .then(|| spec.episodes as f64 * spec.episode_s / usage.wall_s),
+    })
 }
 
 /// The first manifold-method cell of each pair the scenario registers against.

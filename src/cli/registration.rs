@@ -5,7 +5,7 @@ use super::choices::choice;
 use clap::{Args, Subcommand, ValueEnum};
 use pegtwin::choice::Choice;
 use pegtwin::error::{Error, Result};
-use pegtwin::method::manifold::cache::ManifoldSpec;
+use pegtwin::method::manifold::cache::{ManifoldSpec, Sampler};
 use pegtwin::method::manifold::file::{self, read_csv};
 use pegtwin::method::manifold::plot;
 use pegtwin::method::manifold::synthetic::SyntheticPair;
@@ -293,6 +293,10 @@ pub struct BuildArgs {
     pub episode_s: f64,
     #[arg(long, default_value_t = ManifoldSpec::default().seed)]
     pub seed: u64,
+    /// How contact poses are found: `robot` (the arm probes the hole in simulation, paper IV-B)
+    /// or `geometric` (the poses where the parts touch, from their shapes alone, in seconds).
+    #[arg(long, value_parser = choice::<Sampler>(), default_value = "robot")]
+    pub sampler: Sampler,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -303,6 +307,9 @@ fn build(args: BuildArgs) -> Result<()> {
     let (pair, warnings) = source.load()?;
     for w in warnings {
         eprintln!("warning: {w}");
+    }
+    if args.sampler == Sampler::Geometric {
+        return build_geometric(&pair, &args);
     }
     let spec = source.robot()?;
     let (robot, _) = spec.load()?;
@@ -353,6 +360,23 @@ fn build(args: BuildArgs) -> Result<()> {
         config.episode_s,
         started.elapsed().as_secs_f64(),
         report.raw_count,
+        report.manifold.len()
+    );
+    print_info(&args.out, &report.manifold, false);
+    Ok(())
+}
+
+/// `manifold build --sampler geometric`: the parts only (no robot, no episodes).
+fn build_geometric(pair: &pegtwin::twin::geometry::PartPair, args: &BuildArgs) -> Result<()> {
+    let started = std::time::Instant::now();
+    let config = ManifoldSpec::default().sampler();
+    let report =
+        pegtwin::method::manifold::geometric::build(pair, &config, args.points, args.seed)?;
+    file::save(&report.manifold, &args.out)?;
+    println!(
+        "{} contact poses from the parts' geometry in {:.1} s, {} kept (voxel grid)",
+        report.raw_count,
+        started.elapsed().as_secs_f64(),
         report.manifold.len()
     );
     print_info(&args.out, &report.manifold, false);

@@ -12,6 +12,7 @@ use pegtwin::choice::Choice;
 use pegtwin::error::Result;
 use pegtwin::method::config::{Method, Start, TrialConfig};
 use pegtwin::method::manifold::Manifold;
+use pegtwin::method::manifold::cache::Sampler;
 use pegtwin::method::request::{TrialRequest, default_offsets_mm_deg};
 use pegtwin::method::session::{Recorder, trace_csv};
 use pegtwin::method::trial::TrialResult;
@@ -90,6 +91,9 @@ pub struct TrialArgs {
     /// Reference manifold file (default: the cache, built on demand).
     #[arg(long)]
     pub manifold: Option<PathBuf>,
+    /// How the cached reference manifold is made, when no --manifold is given.
+    #[arg(long, value_parser = choice::<Sampler>(), default_value = Sampler::Robot.name(), conflicts_with = "manifold")]
+    pub sampler: Sampler,
     /// Folder of cached manifolds (default: $XDG_CACHE_HOME/pegtwin or ~/.cache/pegtwin).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
@@ -112,6 +116,7 @@ impl TrialArgs {
             offset_mm: self.offset_mm,
             offset_deg: self.offset_deg,
             manifold: self.manifold.clone(),
+            sampler: self.sampler,
             cache_dir: self.cache_dir.clone(),
             profile: self.profile,
         }

@@ -6,7 +6,7 @@
 use crate::error::{Error, Result};
 use crate::method::config::{MAX_OFFSET, Method, Start, TrialConfig};
 use crate::method::manifold::Manifold;
-use crate::method::manifold::cache::{self, BuildProgress, ManifoldSpec};
+use crate::method::manifold::cache::{self, BuildProgress, ManifoldSpec, Sampler};
 use crate::method::manifold::file;
 use crate::method::session::Recorder;
 use crate::method::trial::{TrialResult, run_trial};
@@ -35,6 +35,8 @@ pub struct TrialRequest {
     pub offset_deg: f64,
     /// Reference manifold file (`None`: the cache, built on demand).
     pub manifold: Option<PathBuf>,
+    /// How the cached reference manifold is made (when no file is given).
+    pub sampler: Sampler,
     /// Folder of cached manifolds (`None`: `$XDG_CACHE_HOME/pegtwin` or `~/.cache/pegtwin`).
     pub cache_dir: Option<PathBuf>,
     /// The ideal cell or the real one, its imperfections drawn from the seed (`[cell]`'s
@@ -60,6 +62,7 @@ impl TrialRequest {
             offset_mm,
             offset_deg,
             manifold: None,
+            sampler: Sampler::Robot,
             cache_dir: None,
             profile: RealCell::default().profile,
         }
@@ -133,7 +136,10 @@ impl TrialRequest {
         progress: &dyn BuildProgress,
     ) -> Result<Manifold> {
         let Some(path) = &self.manifold else {
-            let spec = ManifoldSpec::default();
+            let spec = ManifoldSpec {
+                sampler: self.sampler,
+                ..ManifoldSpec::default()
+            };
             return cache::resolve(
                 pair,
                 robot,

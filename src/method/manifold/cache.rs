@@ -9,7 +9,8 @@
 
 use super::Manifold;
 use super::build::{BuildJob, SamplerConfig, build_all};
-use super::file;
+use super::{file, geometric};
+use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
@@ -29,6 +30,47 @@ pub struct ManifoldSpec {
     pub episode_s: f64,
     /// Seed of the sampling.
     pub seed: u64,
+    /// How contact poses are found: the robot in simulation (paper IV-B) or the parts' geometry.
+    /// Left out of a scenario's fingerprint when it is the robot (scenarios written before the
+    /// choice keep theirs).
+    #[serde(skip_serializing_if = "Sampler::is_robot")]
+    pub sampler: Sampler,
+}
+
+/// Which sampler makes a reference manifold.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Sampler {
+    /// The robot under low stiffness runs the sampling primitives in simulation and records the
+    /// poses where its estimated wrench says contact ([`super::build`], paper IV-B).
+    #[default]
+    Robot,
+    /// The poses where the parts touch without overlapping, found with the exact test over the
+    /// region the robot's motion reaches ([`super::geometric`]).
+    Geometric,
+}
+
+impl Choice for Sampler {
+    const WHAT: &'static str = "sampler";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "robot",
+            value: Sampler::Robot,
+            help: "the arm probes the hole in simulation and records where it feels contact (paper IV-B)",
+        },
+        Named {
+            name: "geometric",
+            value: Sampler::Geometric,
+            help: "the poses where the parts touch, from their shapes alone (seconds, independent of the physics)",
+        },
+    ];
+}
+
+impl Sampler {
+    /// Whether this is the robot sampler.
+    pub fn is_robot(&self) -> bool {
+        *self == Sampler::Robot
+    }
 }
 
 impl Default for ManifoldSpec {
@@ -39,6 +81,7 @@ impl Default for ManifoldSpec {
             episodes: s.episodes,
             episode_s: s.episode_s,
             seed: 1,
+            sampler: Sampler::Robot,
         }
     }
 }
@@ -62,15 +105,31 @@ pub struct Recipe<'a> {
     pub points: usize,
     pub seed: u64,
     pub params: &'a WorkCellParams,
+    /// Which sampler (left out for the robot's: its keys stay as they were).
+    #[serde(skip_serializing_if = "Sampler::is_robot")]
+    pub kind: Sampler,
 }
 
 impl Recipe<'_> {
-    /// The checksum that names the cached file (the physics parameters and the arm cell's
-    /// contact prediction rule included).
+    /// The checksum that names the cached file. The robot's includes the physics parameters and
+    /// the arm cell's contact prediction rule; the geometric one depends on the parts and the
+    /// motion's region only (not the cell: one file serves every physics), and is marked `geo`.
     pub fn key(&self) -> String {
-        let physics = (&self.params.physics, ARM_PREDICTION_RULE);
-        let json = serde_json::to_string(&(self, physics)).expect("recipe serialises");
-        format!("{:08x}", crc32fast::hash(json.as_bytes()))
+        let json = match self.kind {
+            Sampler::Robot => {
+                let physics = (&self.params.physics, ARM_PREDICTION_RULE);
+                serde_json::to_string(&(self, physics))
+            }
+            Sampler::Geometric => serde_json::to_string(&(
+                &self.sampler.motion,
+                self.points,
+                self.seed,
+                geometric::RULE,
+            )),
+        }
+        .expect("recipe serialises");
+        let prefix = if self.kind.is_robot() { "" } else { "geo" };
+        format!("{prefix}{:08x}", crc32fast::hash(json.as_bytes()))
     }
 }
 
@@ -175,7 +234,25 @@ pub fn resolve_all(
     let paths: Vec<PathBuf> = (missing.iter().zip(&recipes))
         .map(|(&i, r)| path(dir, wanted[i].pair, r))
         .collect();
-    let jobs: Vec<BuildJob> = (missing.iter().zip(&recipes))
+    let built = match spec.sampler {
+        Sampler::Robot => build_robot(wanted, &missing, &recipes, &paths, progress),
+        Sampler::Geometric => build_geometric(wanted, &missing, &recipes, &paths, progress),
+    };
+    for (i, manifold) in missing.into_iter().zip(built) {
+        out[i] = Some(manifold);
+    }
+    out.into_iter().flatten().collect()
+}
+
+/// Builds the robot-sampled manifolds of `wanted[missing]` side by side and caches each.
+fn build_robot(
+    wanted: &[Wanted],
+    missing: &[usize],
+    recipes: &[Recipe],
+    paths: &[PathBuf],
+    progress: &dyn BuildProgress,
+) -> Vec<Result<Manifold>> {
+    let jobs: Vec<BuildJob> = (missing.iter().zip(recipes))
         .map(|(&i, r)| BuildJob {
             pair: wanted[i].pair,
             robot: wanted[i].robot,
@@ -185,19 +262,36 @@ pub fn resolve_all(
             seed: r.seed,
         })
         .collect();
-    for (&i, path) in missing.iter().zip(&paths) {
-        progress.build_started(wanted[i].pair, path, sampler.episodes);
+    for (job, path) in jobs.iter().zip(paths) {
+        progress.build_started(job.pair, path, job.config.episodes);
     }
-    let built = build_all(&jobs, &|| progress.episode_done(), |j, report| {
+    build_all(&jobs, &|| progress.episode_done(), |j, report| {
         progress.build_finished();
         let report = report?;
         file::save(&report.manifold, &paths[j])?;
         Ok(report.manifold)
-    });
-    for (i, manifold) in missing.into_iter().zip(built) {
-        out[i] = Some(manifold);
-    }
-    out.into_iter().flatten().collect()
+    })
+}
+
+/// Builds the geometric manifolds of `wanted[missing]` one after the other (each on every
+/// core) and caches each.
+fn build_geometric(
+    wanted: &[Wanted],
+    missing: &[usize],
+    recipes: &[Recipe],
+    paths: &[PathBuf],
+    progress: &dyn BuildProgress,
+) -> Vec<Result<Manifold>> {
+    (missing.iter().zip(recipes).zip(paths))
+        .map(|((&i, r), path)| {
+            progress.build_started(wanted[i].pair, path, 0);
+            let report = geometric::build(wanted[i].pair, r.sampler, r.points, r.seed);
+            progress.build_finished();
+            let report = report?;
+            file::save(&report.manifold, path)?;
+            Ok(report.manifold)
+        })
+        .collect()
 }
 
 /// The recipe `spec` asks for (its sampler `sampler`) with the cell `params`.
@@ -211,6 +305,7 @@ fn recipe_of<'a>(
         points: spec.points,
         seed: spec.seed,
         params,
+        kind: spec.sampler,
     }
 }
 
@@ -235,4 +330,32 @@ fn load_cached(pair: &PartPair, recipe: &Recipe, dir: &Path) -> Result<Option<Ma
     let m = file::load(&path)?;
     m.check_made_for(pair, &path)?;
     Ok(Some(m))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_samplers_keys_differ_and_the_geometric_one_ignores_the_cell() {
+        let sampler = SamplerConfig::default();
+        let params = WorkCellParams::default();
+        let mut other = params.clone();
+        other.physics.friction += 0.1;
+        let recipe = |params, kind| Recipe {
+            sampler: &sampler,
+            points: 50_000,
+            seed: 1,
+            params,
+            kind,
+        };
+        let robot = recipe(&params, Sampler::Robot);
+        // The robot's recipe is written as it was before the choice (its cached files stay).
+        assert!(!serde_json::to_string(&robot).unwrap().contains("kind"));
+        assert_ne!(robot.key(), recipe(&other, Sampler::Robot).key());
+        let geometric = recipe(&params, Sampler::Geometric).key();
+        assert!(geometric.starts_with("geo"), "{geometric}");
+        assert_eq!(geometric, recipe(&other, Sampler::Geometric).key());
+        assert_ne!(geometric, robot.key());
+    }
 }

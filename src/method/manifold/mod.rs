@@ -13,6 +13,7 @@
 pub mod build;
 pub mod cache;
 pub mod file;
+pub mod geometric;
 pub mod plot;
 pub mod synthetic;
 

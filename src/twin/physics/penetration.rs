@@ -63,6 +63,90 @@ fn posed_penetration(a: &Posed, b: &Posed) -> f64 {
     depth.max(0.0)
 }
 
+/// What [`PenetrationProbe::signed_gap`] remembers of a piece pair.
+#[derive(Clone, Copy, Debug)]
+struct Hint {
+    /// Index of the axis that gave the pair's gap ([`posed_gap`]'s numbering).
+    axis: usize,
+    gap_m: f64,
+}
+
+/// Each piece pair's last gap (or a lower bound of it) and axis, for
+/// [`PenetrationProbe::signed_gap`] (one per search).
+#[derive(Clone, Debug)]
+pub struct GapHints {
+    /// Sorted by the pair (moving piece, fixed piece).
+    pairs: Vec<((usize, usize), Hint)>,
+    /// How far any point of the moving solid may have moved since the last call, m.
+    moved_m: f64,
+}
+
+impl Default for GapHints {
+    fn default() -> Self {
+        GapHints {
+            pairs: Vec::new(),
+            moved_m: f64::INFINITY,
+        }
+    }
+}
+
+impl GapHints {
+    /// Tells the next call that no point of the moving solid has moved more than `m` metres
+    /// since the last one (`f64::INFINITY`, the default: unknown).
+    pub fn moved(&mut self, m: f64) {
+        self.moved_m = m;
+    }
+
+    fn get(&self, piece: usize, fixed: usize) -> Option<Hint> {
+        (self.pairs)
+            .binary_search_by_key(&(piece, fixed), |(k, _)| *k)
+            .ok()
+            .map(|i| self.pairs[i].1)
+    }
+}
+
+/// The separating-axis candidate `k` of two pieces: the face normals of `a`, then those of
+/// `b`, then the cross products of their edge directions (row by row); `None` for a cross
+/// product of parallel edges.
+fn axis(a: &Posed, b: &Posed, k: usize) -> Option<Vector3<f64>> {
+    let (na, nb) = (a.face_normals.len(), b.face_normals.len());
+    if k < na {
+        return Some(a.face_normals[k]);
+    }
+    if k < na + nb {
+        return Some(b.face_normals[k - na]);
+    }
+    let e = k - na - nb;
+    let c = a.edge_dirs[e / b.edge_dirs.len()].cross(&b.edge_dirs[e % b.edge_dirs.len()]);
+    let len = c.norm();
+    (len > 1e-9).then(|| c / len)
+}
+
+/// The largest separation (metres; negative: minus the overlap depth) of two convex pieces
+/// along the separating-axis candidates ([`axis`]), and the candidate that gives it:
+/// `-posed_penetration` when they overlap. `first` is tried first (the last call's axis). Stops
+/// as soon as it reaches `enough` (the caller's smallest gap so far, which this pair can then
+/// not lower) and returns the separation found by then.
+fn posed_gap(a: &Posed, b: &Posed, enough: f64, first: Option<usize>) -> (f64, usize) {
+    let mut best = (f64::NEG_INFINITY, 0);
+    let count = a.face_normals.len() + b.face_normals.len() + a.edge_dirs.len() * b.edge_dirs.len();
+    for k in first.into_iter().chain(0..count) {
+        let Some(axis) = axis(a, b, k) else {
+            continue;
+        };
+        let (a0, a1) = project(&a.vertices, &axis);
+        let (b0, b1) = project(&b.vertices, &axis);
+        let sep = (b0 - a1).max(a0 - b1);
+        if sep > best.0 {
+            best = (sep, k);
+        }
+        if best.0 >= enough {
+            break;
+        }
+    }
+    best
+}
+
 /// The least overlap (metres; negative: the separation) of `moving` with `fixed` and the unit
 /// direction that opens it by moving `moving`; `None` as soon as an axis separates them by more
 /// than `margin` (metres). The face normals of both come first; only a pair they leave
@@ -201,6 +285,73 @@ impl PenetrationProbe {
             .iter()
             .map(|piece| self.piece_penetration(piece, pose))
             .fold(0.0, f64::max)
+    }
+
+    /// The signed gap (metres) between `moving` placed at `pose` and the fixed solid: over the
+    /// piece pairs whose bounds come within `margin_m`, the least of each pair's largest
+    /// separation along the separating-axis candidates ([`posed_gap`]); `margin_m` when no pair
+    /// comes that close. Negative: minus the penetration depth ([`Self::max_penetration`]) of
+    /// the deepest pair; zero exactly when touching; positive: a lower bound of the distance.
+    ///
+    /// `hints` remembers, from the previous call, a lower bound of each pair's signed distance
+    /// and the axis that gave it: the pairs are tried closest first and each on its last axis
+    /// first. When the caller bounds how far any point of the solid moved since
+    /// ([`GapHints::moved`]), a pair's signed distance is at least its bound less that motion (the
+    /// signed distance of two convex bodies changes no faster than their points move); a pair
+    /// whose bound is still no smaller than the least gap found so far is not tested, nor placed.
+    /// A positive value may then be larger than without the hints (never larger than the
+    /// distance); its sign, and a negative value, do not depend on them.
+    pub fn signed_gap(
+        &self,
+        moving: &Solid,
+        pose: &Isometry3<f64>,
+        margin_m: f64,
+        hints: &mut GapHints,
+    ) -> f64 {
+        let mut pairs: Vec<(usize, usize, Option<Hint>)> = Vec::new();
+        for (p, piece) in moving.pieces.iter().enumerate() {
+            let bounds = bounds_of(piece.vertices.iter().map(|v| pose * v));
+            pairs.extend(
+                self.near_bounds(&bounds, margin_m)
+                    .map(|f| (p, f, hints.get(p, f))),
+            );
+        }
+        pairs.sort_by(|a, b| {
+            let gap = |h: &Option<Hint>| h.map_or(f64::INFINITY, |h| h.gap_m);
+            gap(&a.2).total_cmp(&gap(&b.2))
+        });
+        let mut posed: Vec<Option<Posed>> = vec![None; moving.pieces.len()];
+        let mut least = margin_m;
+        let mut fresh = Vec::with_capacity(pairs.len());
+        for &(p, f, hint) in &pairs {
+            let bound = hint.map(|h| Hint {
+                gap_m: h.gap_m - hints.moved_m,
+                ..h
+            });
+            if let Some(b) = bound.filter(|b| b.gap_m >= least) {
+                fresh.push(((p, f), b));
+                continue;
+            }
+            let placed = posed[p].get_or_insert_with(|| Posed::new(&moving.pieces[p], pose));
+            let (gap, axis) = posed_gap(placed, &self.fixed[f], least, hint.map(|h| h.axis));
+            least = least.min(gap);
+            fresh.push(((p, f), Hint { axis, gap_m: gap }));
+        }
+        fresh.sort_unstable_by_key(|(k, _)| *k);
+        hints.pairs = fresh;
+        hints.moved_m = f64::INFINITY;
+        least
+    }
+
+    /// The fixed pieces whose bounds come within `margin` (metres) of `bounds`, in index order.
+    fn near_bounds(&self, bounds: &(P3, P3), margin: f64) -> impl Iterator<Item = usize> {
+        let mut near: Vec<usize> = (self.tree)
+            .intersect_aabb(&tree_box(bounds, margin))
+            .map(|i| i as usize)
+            .filter(|&i| within(bounds, &self.fixed[i].bounds, margin))
+            .collect();
+        near.sort_unstable();
+        near.into_iter()
     }
 
     /// Every pair of a piece of `moving` at `pose` and a piece of the fixed solid whose bounds

@@ -1,0 +1,474 @@
+//! The reference manifold from the parts alone (no dynamics): the set of peg poses `hole_T_peg`
+//! where the peg touches the hole without overlapping it, found with the exact separating-axis
+//! test ([`PenetrationProbe`]), over the region of poses the robot sampler's motion reaches
+//! ([`Region`]). The contact manifold is a property of the two parts (paper IV-A); the robot
+//! sampler (paper IV-B, [`super::build`]) finds it through the physics and a contact detector,
+//! this one finds it directly, in seconds instead of minutes, and independently of the physics
+//! and the cell (so one file serves every physics draw of a calibration).
+//!
+//! **Draws.** Each draw is a tip depth, uniform over the region's depths, and a direction in
+//! (x, y, roll, pitch, yaw) from the centred pose at that depth, each axis a normal variate scaled
+//! by the free play of that axis (half the clearance sideways, `c / d` in tilt, half the
+//! clearance over the peg's radius in yaw). The peg moves along the direction until it first
+//! overlaps the hole (doubling, then bisection until no point of the peg moves more than
+//! [`TOUCH_TOLERANCE_M`] across the bracket); the free end of the bracket is the contact pose. A
+//! draw whose centred pose already overlaps, or whose ray leaves the region before touching, is
+//! dropped (the robot's motion does not go there). The draws are then downsampled by the same
+//! voxel grid as the robot's ([`downsample`]), so that every region of the manifold counts by the
+//! volume it occupies, and given normals the same way.
+//!
+//! Every draw has its own random stream (the seed, stream = the draw's index), and draws are
+//! gathered in index order: the manifold is the same on any number of threads.
+
+use super::build::{BuildReport, SamplerConfig, downsample};
+use super::{DEFAULT_NORMAL_K, MAX_POINTS, Manifold, ManifoldMeta, UNITS};
+use crate::error::{Error, Result};
+use crate::method::primitives::SamplingMotion;
+use crate::pose::{Pose6, PoseMetric};
+use crate::twin::geometry::PartPair;
+use crate::twin::physics::penetration::{GapHints, PenetrationProbe};
+use nalgebra::Isometry3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Contact poses drawn per pose kept: the voxel grid then evens out where the rays bunch.
+pub const DRAWS_PER_POINT: usize = 2;
+/// The bisection stops when no point of the peg moves more than this between the free and the
+/// overlapping end of its bracket, m: each kept pose is within this of touching.
+pub const TOUCH_TOLERANCE_M: f64 = 0.5e-6;
+/// How far the robot's targets spread beyond its commanded motion, in standard deviations of the
+/// motion's random perturbation (2: 95 % of a normal variate).
+pub const PERTURBATION_REACH_SIGMAS: f64 = 2.0;
+/// What decides a geometric manifold beyond its motion, points and seed: part of its cache key
+/// (a change of the method here builds new files instead of reusing stale ones).
+pub const RULE: &str = "geometric v1: 2 draws per point, 0.5 um, 2 sigma";
+/// The signed gap's margin, as a share of the clearance: pairs farther apart count as this far.
+/// A narrower margin tests fewer piece pairs per pose but flattens the gap away from contact, so
+/// the root finder needs more poses; a quarter was the fastest of 1/16, 1/4 and 1 on the cross
+/// at 0.5 mm (6.7 s against 8.0 s and 11.4 s).
+const GAP_MARGIN: f64 = 0.25;
+/// Draws tried at most, per contact pose wanted, before the build is refused.
+const MAX_DRAWS_PER_CONTACT: usize = 50;
+/// Draws handed to the thread pool at a time.
+const BATCH: usize = 8192;
+
+/// The poses the robot sampler's motion ([`SamplingMotion`]) reaches at a clearance: the tip's
+/// depth over the descent, widened by the perturbation; roll and pitch within the oscillation's
+/// amplitude at that depth (free tilt plus overtravel, [`crate::method::primitives::
+/// AmplitudeSchedule`]), yaw within its fraction of it, each widened by the perturbation; x and
+/// y within the spiral's radius, widened likewise. All in the hole frame, m and rad.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Region {
+    /// Tip depths below the mouth, shallowest first, m.
+    pub depth_m: [f64; 2],
+    /// Largest |x| and |y| of the tip, m.
+    pub lateral_m: f64,
+    /// Diametral clearance, m.
+    clearance_m: f64,
+    /// The motion whose amplitudes bound the angles.
+    motion: SamplingMotion,
+}
+
+impl Region {
+    /// The region the robot sampler's `motion` reaches in `pair`; the deepest tip stops at the
+    /// pair's full insertion.
+    pub fn of(pair: &PartPair, motion: &SamplingMotion) -> Result<Region> {
+        let d = &motion.descent;
+        let spread_m = PERTURBATION_REACH_SIGMAS * motion.perturbation.sigma_m;
+        let shallow = (d.start_depth_m.min(d.end_depth_m) - spread_m).max(0.0);
+        let deep = d.start_depth_m.max(d.end_depth_m).min(pair.cavity_depth_m);
+        if deep <= shallow {
+            return Err(Error::Input(format!(
+                "the sampling motion's descent ({} to {} mm) does not reach into the hole of {} \
+                 ({} mm deep)",
+                d.start_depth_m * 1e3,
+                d.end_depth_m * 1e3,
+                pair.name,
+                pair.cavity_depth_m * 1e3
+            )));
+        }
+        Ok(Region {
+            depth_m: [shallow, deep],
+            lateral_m: motion.scale * motion.schedule.lateral_radius(pair.clearance_m) + spread_m,
+            clearance_m: pair.clearance_m,
+            motion: motion.clone(),
+        })
+    }
+
+    /// Largest |roll|, |pitch|, |yaw| at a tip depth, rad.
+    pub fn angle_limits(&self, depth_m: f64) -> [f64; 3] {
+        let spread = PERTURBATION_REACH_SIGMAS * self.motion.perturbation.sigma_rad;
+        (self.motion.schedule)
+            .angular_amplitudes(depth_m, self.clearance_m)
+            .map(|a| self.motion.scale * a + spread)
+    }
+
+    /// The largest step `s` along `dir` (x, y, roll, pitch, yaw) from the centred pose at
+    /// `depth_m` that stays in the region.
+    fn reach(&self, depth_m: f64, dir: &[f64; 5]) -> f64 {
+        let [roll, pitch, yaw] = self.angle_limits(depth_m);
+        let limits = [self.lateral_m, self.lateral_m, roll, pitch, yaw];
+        limits
+            .iter()
+            .zip(dir)
+            .filter(|(_, d)| **d != 0.0)
+            .map(|(l, d)| l / d.abs())
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// What one draw gave.
+enum Draw {
+    /// A contact pose.
+    Contact(Pose6),
+    /// The centred pose at the drawn depth already overlaps the hole.
+    Blocked,
+    /// The ray leaves the region before it touches.
+    Outside,
+}
+
+/// A geometric build in progress: the pair, its probe, the region and the ray scales.
+struct Rays<'a> {
+    pair: &'a PartPair,
+    probe: PenetrationProbe,
+    region: Region,
+    /// Largest distance of a peg vertex from the tip, m (turns an angle into a motion).
+    reach_m: f64,
+    /// Largest distance of an engaged peg vertex from the peg's axis, m (sets the yaw scale).
+    radius_m: f64,
+    seed: u64,
+}
+
+impl<'a> Rays<'a> {
+    fn new(pair: &'a PartPair, region: Region, seed: u64) -> Self {
+        let vertices = || pair.peg.pieces.iter().flat_map(|p| p.vertices.iter());
+        let reach_m = vertices().map(|v| v.coords.norm()).fold(0.0, f64::max);
+        let deepest = region.depth_m[1];
+        let radius_m = vertices()
+            .filter(|v| v.z <= deepest)
+            .map(|v| v.x.hypot(v.y))
+            .fold(0.0, f64::max);
+        Rays {
+            probe: PenetrationProbe::new(&pair.hole, &Isometry3::identity()),
+            pair,
+            region,
+            reach_m,
+            radius_m: radius_m.max(pair.clearance_m),
+            seed,
+        }
+    }
+
+    /// The signed gap between the parts at `pose` (m; negative: overlapping), exact at zero
+    /// ([`PenetrationProbe::signed_gap`]); pairs farther apart than [`GAP_MARGIN`] times the
+    /// clearance count as that.
+    fn gap(&self, pose: &Pose6, hints: &mut GapHints) -> f64 {
+        let margin_m = GAP_MARGIN * self.region.clearance_m;
+        (self.probe).signed_gap(&self.pair.peg, &pose.to_iso(), margin_m, hints)
+    }
+
+    /// Draw `i`: its depth and direction from its own stream, then the first contact along it.
+    fn draw(&self, i: u64) -> Draw {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+        rng.set_stream(i);
+        let [shallow, deep] = self.region.depth_m;
+        let depth = rng.random_range(shallow..=deep);
+        let gap = self.region.clearance_m / 2.0;
+        let [roll, pitch, yaw] = self.region.angle_limits(depth);
+        let tilt = self.region.clearance_m / depth.max(1e-4);
+        let scales = [
+            gap,
+            gap,
+            tilt.min(roll),
+            tilt.min(pitch),
+            (gap / self.radius_m).min(yaw),
+        ];
+        let dir: [f64; 5] = std::array::from_fn(|k| {
+            let n: f64 = StandardNormal.sample(&mut rng);
+            scales[k] * n
+        });
+        let pose = |s: f64| {
+            let [x, y, r, p, w] = dir.map(|d| s * d);
+            Pose6([x, y, -depth, r, p, w])
+        };
+        // How far a point of the peg moves per unit step: the translation plus the turn
+        // (every angle's share at the farthest vertex, summed: an upper bound).
+        let speed =
+            dir[0].hypot(dir[1]) + self.reach_m * dir[2..].iter().map(|a| a.abs()).sum::<f64>();
+        // The gaps of the last step, and the step, so that the next one skips the pairs its
+        // motion cannot bring closest ([`GapHints::moved`]).
+        let last = std::cell::RefCell::new((GapHints::default(), None::<f64>));
+        let along = |s: f64| {
+            let (hints, step) = &mut *last.borrow_mut();
+            if let Some(previous) = step.replace(s) {
+                hints.moved(speed * (s - previous).abs() * (1.0 + 1e-9) + 1e-12);
+            }
+            self.gap(&pose(s), hints)
+        };
+        match first_touch(
+            along,
+            self.region.reach(depth, &dir),
+            TOUCH_TOLERANCE_M / speed,
+        ) {
+            Touch::At(s) => Draw::Contact(pose(s)),
+            Touch::Blocked => Draw::Blocked,
+            Touch::Free => Draw::Outside,
+        }
+    }
+}
+
+/// Where a ray first touches.
+#[derive(Debug, PartialEq)]
+enum Touch {
+    /// Free at this step, overlapping within the tolerance beyond it.
+    At(f64),
+    /// Touching or overlapping at the start.
+    Blocked,
+    /// Free all the way to the limit.
+    Free,
+}
+
+/// The first root of `gap(s)` for `s` in `[0, limit]`, bracketed to `tolerance` (the free end
+/// returned), where `gap` is a signed gap, continuous and exact at zero. The bracket is found by
+/// doubling from 1, then narrowed by regula falsi with the Illinois modification (superlinear on
+/// piecewise-smooth gaps), each step kept half a tolerance inside the bracket so that the last
+/// two close it.
+fn first_touch(gap: impl Fn(f64) -> f64, limit: f64, tolerance: f64) -> Touch {
+    let (mut lo, mut f_lo) = (0.0, gap(0.0));
+    if f_lo <= 0.0 {
+        return Touch::Blocked;
+    }
+    let mut hi = 1.0f64.min(limit);
+    let mut f_hi = gap(hi);
+    while f_hi > 0.0 {
+        if hi >= limit {
+            return Touch::Free;
+        }
+        (lo, f_lo) = (hi, f_hi);
+        hi = (2.0 * hi).min(limit);
+        f_hi = gap(hi);
+    }
+    let mut side = 0i8;
+    while hi - lo > tolerance {
+        let secant = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+        let s = if secant.is_finite() {
+            // Half a tolerance inside either end at least: a step that close to the root
+            // closes the bracket with the next one.
+            secant.clamp(lo + 0.5 * tolerance, hi - 0.5 * tolerance)
+        } else {
+            0.5 * (lo + hi)
+        };
+        let f = gap(s);
+        if f > 0.0 {
+            (lo, f_lo) = (s, f);
+            if side == 1 {
+                f_hi *= 0.5;
+            }
+            side = 1;
+        } else {
+            (hi, f_hi) = (s, f);
+            if side == -1 {
+                f_lo *= 0.5;
+            }
+            side = -1;
+        }
+    }
+    Touch::At(lo)
+}
+
+/// What a geometric build drew.
+struct Drawn {
+    contacts: Vec<Pose6>,
+    draws: usize,
+    blocked: usize,
+    outside: usize,
+}
+
+/// Draws until `wanted` contact poses are found (in draw order), refusing after
+/// [`MAX_DRAWS_PER_CONTACT`] draws per pose wanted.
+fn draw_contacts(rays: &Rays, wanted: usize) -> Result<Drawn> {
+    let mut drawn = Drawn {
+        contacts: Vec::with_capacity(wanted),
+        draws: 0,
+        blocked: 0,
+        outside: 0,
+    };
+    let most = wanted.saturating_mul(MAX_DRAWS_PER_CONTACT);
+    while drawn.contacts.len() < wanted {
+        if drawn.draws >= most {
+            return Err(Error::Input(format!(
+                "{} of {} geometric draws of {} at {} mm touched inside the region the robot's \
+                 motion reaches ({} started overlapping, {} left the region): the peg does not \
+                 fit its hole centred, or the region misses the walls",
+                drawn.contacts.len(),
+                drawn.draws,
+                rays.pair.name,
+                rays.pair.clearance_mm(),
+                drawn.blocked,
+                drawn.outside
+            )));
+        }
+        let start = drawn.draws as u64;
+        let batch: Vec<Draw> = (start..start + BATCH as u64)
+            .into_par_iter()
+            .map(|i| rays.draw(i))
+            .collect();
+        drawn.draws += BATCH;
+        for d in batch {
+            match d {
+                Draw::Contact(p) if drawn.contacts.len() < wanted => drawn.contacts.push(p),
+                Draw::Contact(_) => {}
+                Draw::Blocked => drawn.blocked += 1,
+                Draw::Outside => drawn.outside += 1,
+            }
+        }
+    }
+    Ok(drawn)
+}
+
+/// Builds the reference manifold of `pair` from its geometry: [`DRAWS_PER_POINT`] x `points`
+/// contact poses over the region `config`'s motion reaches, downsampled to `points` by the voxel
+/// grid, normals from the `DEFAULT_NORMAL_K` nearest neighbours.
+pub fn build(
+    pair: &PartPair,
+    config: &SamplerConfig,
+    points: usize,
+    seed: u64,
+) -> Result<BuildReport> {
+    if !(DEFAULT_NORMAL_K + 1..=MAX_POINTS).contains(&points) {
+        return Err(Error::Input(format!(
+            "--points {points}: expected {} (the normal neighbourhood) to {MAX_POINTS}",
+            DEFAULT_NORMAL_K + 1
+        )));
+    }
+    let region = Region::of(pair, &config.motion)?;
+    let rays = Rays::new(pair, region.clone(), seed);
+    let drawn = draw_contacts(&rays, DRAWS_PER_POINT * points)?;
+    let metric = PoseMetric::default();
+    let kept = downsample(&drawn.contacts, &metric, points, seed);
+    let meta = ManifoldMeta {
+        geometry: pair.name.clone(),
+        clearance_m: Some(pair.clearance_m),
+        units: UNITS.into(),
+        metric,
+        normal_k: DEFAULT_NORMAL_K,
+        source: format!(
+            "pegtwin manifold build --sampler geometric: {} contact poses from {} draws ({} \
+             started overlapping, {} left the region, dropped), each within {} um of touching, \
+             voxel-grid downsampled; region {}",
+            drawn.contacts.len(),
+            drawn.draws,
+            drawn.blocked,
+            drawn.outside,
+            TOUCH_TOLERANCE_M * 1e6,
+            serde_json::to_string(&region).expect("region serialises")
+        ),
+        seed: Some(seed),
+    };
+    Ok(BuildReport {
+        manifold: Manifold::from_points(kept, meta)?,
+        raw_count: drawn.contacts.len(),
+        faults: Vec::new(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::twin::geometry::{build_builtin, builtin_by_name};
+
+    #[test]
+    fn the_first_touch_is_bracketed_to_the_tolerance_from_the_free_side() {
+        // A kinked gap with its root at 0.7.
+        let gap = |s: f64| {
+            if s < 0.5 {
+                1.0 - s
+            } else {
+                0.5 - (s - 0.5) * 2.5
+            }
+        };
+        let Touch::At(s) = first_touch(gap, 10.0, 1e-9) else {
+            panic!("a root in range");
+        };
+        assert!(s <= 0.7 && 0.7 - s <= 1e-9, "{s}");
+        assert_eq!(first_touch(gap, 0.6, 1e-9), Touch::Free);
+        assert_eq!(first_touch(|s| s - 1.0, 10.0, 1e-9), Touch::Blocked);
+        assert_eq!(
+            first_touch(|_| 0.0, 10.0, 1e-9),
+            Touch::Blocked,
+            "touching at the start"
+        );
+        // A root far beyond the first step: found by doubling.
+        let Touch::At(s) = first_touch(|s| 37.0 - s, 100.0, 1e-9) else {
+            panic!("a root in range");
+        };
+        assert!((37.0 - s) <= 1e-9 && s <= 37.0, "{s}");
+    }
+
+    #[test]
+    fn the_region_is_the_one_the_robot_sampler_reaches() {
+        let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
+        let motion = SamplerConfig::default().motion;
+        let region = Region::of(&pair, &motion).unwrap();
+        // The descent from 2 to 20 mm, the shallow end widened by two sigmas of 0.5 mm.
+        assert!(
+            (region.depth_m[0] - 1e-3).abs() < 1e-12,
+            "{:?}",
+            region.depth_m
+        );
+        assert!(
+            (region.depth_m[1] - 20e-3).abs() < 1e-12,
+            "{:?}",
+            region.depth_m
+        );
+        // At 2 mm the free tilt c/d = 0.25 rad is capped at 0.035; then 0.06 of overtravel and
+        // two sigmas of 5 mrad. At 20 mm, c/d = 0.025.
+        for (depth, tilt) in [(2e-3, 0.105), (20e-3, 0.095)] {
+            let limits = region.angle_limits(depth);
+            for l in limits {
+                assert!((l - tilt).abs() < 1e-12, "{depth}: {limits:?}");
+            }
+        }
+        let mut shallow = motion.clone();
+        shallow.descent.end_depth_m = -3e-3;
+        shallow.descent.start_depth_m = -1e-3;
+        let e = Region::of(&pair, &shallow).unwrap_err().to_string();
+        assert!(e.contains("does not reach into the hole"), "{e}");
+    }
+
+    #[test]
+    fn every_pose_touches_within_the_tolerance_the_same_on_one_thread() {
+        let pair = build_builtin(builtin_by_name("key").unwrap(), 0.3e-3).unwrap();
+        let config = SamplerConfig::default();
+        let report = build(&pair, &config, 2000, 3).unwrap();
+        let m = &report.manifold;
+        assert_eq!(m.len(), 2000);
+        assert_eq!(report.raw_count, 4000);
+        let probe = PenetrationProbe::new(&pair.hole, &Isometry3::identity());
+        for p in &m.points {
+            let mut hints = GapHints::default();
+            let gap = probe.signed_gap(&pair.peg, &p.to_iso(), 1e-3, &mut hints);
+            // Free, and within the tolerance of touching (the gap bounds the distance below).
+            assert!((0.0..=TOUCH_TOLERANCE_M).contains(&gap), "{p:?}: {gap}");
+            assert_eq!(probe.max_penetration(&pair.peg, &p.to_iso()), 0.0);
+            assert!((-20e-3..=-1e-3).contains(&p.0[2]), "{p:?}");
+        }
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let alone = one.install(|| build(&pair, &config, 2000, 3)).unwrap();
+        assert_eq!(alone.manifold.points, m.points);
+        assert_eq!(alone.manifold.normals, m.normals);
+        assert_ne!(
+            build(&pair, &config, 2000, 4).unwrap().manifold.points,
+            m.points
+        );
+        assert!(
+            build(&pair, &config, 5, 3).is_err(),
+            "too few points for a normal"
+        );
+    }
+}
