@@ -79,6 +79,10 @@ impl BuildProgress for Bars {
             return;
         }
         eprintln!("{message}");
+        if episodes == 0 {
+            // No episodes to count (the geometric sampler): the message alone.
+            return;
+        }
         self.start(styled(
             episodes,
             "[{bar:40}] {pos}/{len} episodes, {elapsed} elapsed, ETA {eta}",

@@ -135,7 +135,8 @@ impl Recipe<'_> {
 
 /// What a build reports while it runs, for a progress display (the library prints nothing).
 pub trait BuildProgress: Sync {
-    /// The manifold of `pair` is about to be built into `path`, in `episodes` episodes.
+    /// The manifold of `pair` is about to be built into `path`, in `episodes` episodes (none for
+    /// the geometric sampler).
     fn build_started(&self, _pair: &PartPair, _path: &Path, _episodes: usize) {}
     /// One sampling episode finished.
     fn episode_done(&self) {}
