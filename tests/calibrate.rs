@@ -169,6 +169,24 @@ fn calibrate_recovers_a_known_friction_flags_the_unreachable_and_resumes() {
     let o = calibrate(&scenario, &file, &cut, cache, &[]);
     assert_eq!(o.status.code(), Some(2), "a used folder without --resume");
 
+    // A draw read back with more successes than trials is refused, naming its line.
+    let forged = t.join("forged");
+    std::fs::create_dir(&forged).unwrap();
+    std::fs::copy(
+        out.join("calibration.json"),
+        forged.join("calibration.json"),
+    )
+    .unwrap();
+    let mut first: serde_json::Value = serde_json::from_str(kept[0]).unwrap();
+    let count = (first["figures"].as_array_mut().unwrap().iter_mut())
+        .find_map(|f| f.get_mut("count"))
+        .expect("a success count");
+    count["s"] = serde_json::json!(count["m"].as_u64().unwrap() + 1);
+    std::fs::write(forged.join("evaluations.jsonl"), format!("{first}\n")).unwrap();
+    let o = calibrate(&scenario, &file, &forged, cache, &["--resume"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("line 1"), "{}", stderr(&o));
+
     // A failure force no friction in the prior reaches.
     let file = write(t, "far.toml", &targets(&cell, Some(400.0), 4));
     let o = calibrate(&scenario, &file, &t.join("far"), cache, &[]);

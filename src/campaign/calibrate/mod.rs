@@ -224,7 +224,9 @@ fn read_evaluations(path: &Path, described: &CalibrationFile) -> Result<Vec<Eval
             Ok(e)
                 if e.draw == done.len()
                     && described.draws.get(e.draw) == Some(&e.values)
-                    && e.figures.len() == described.targets.targets.len() =>
+                    && e.figures.len() == described.targets.targets.len()
+                    && (e.figures.iter().zip(&described.targets.targets))
+                        .all(|(f, t)| f.fits(t.figure)) =>
             {
                 whole += line.len() as u64 + 1;
                 done.push(e);

@@ -6,6 +6,7 @@
 //! weighted by its trials over its variance. The fit's covariance, scaled up by the residuals'
 //! excess over what the trials explain (never down), gives each prediction its standard error.
 
+use super::targets::Figure;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -19,6 +20,25 @@ pub enum Simulated {
     Mean { mean: f64, std: f64, m: usize },
     /// The twin gave no such figure (no success to take a force from, no estimate to err).
     Missing,
+}
+
+impl Simulated {
+    /// Whether this can be what the twin gave for `figure` (read back from a file): a count of
+    /// at most its trials for a success rate; a finite mean with a finite, non-negative spread
+    /// for the others; or nothing.
+    pub fn fits(&self, figure: Figure) -> bool {
+        match *self {
+            Simulated::Count { s, m } => figure == Figure::Success && s <= m && m > 0,
+            Simulated::Mean { mean, std, m } => {
+                figure != Figure::Success
+                    && mean.is_finite()
+                    && std.is_finite()
+                    && std >= 0.0
+                    && m > 0
+            }
+            Simulated::Missing => true,
+        }
+    }
 }
 
 /// What the surrogate predicts at a point.
