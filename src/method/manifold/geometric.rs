@@ -287,7 +287,7 @@ struct Drawn {
 }
 
 /// Draws until `wanted` contact poses are found (in draw order), refusing after
-/// [`MAX_DRAWS_PER_CONTACT`] draws per pose wanted.
+/// [`MAX_DRAWS_PER_CONTACT`] draws per pose wanted, or after a first batch with none.
 fn draw_contacts(rays: &Rays, wanted: usize) -> Result<Drawn> {
     let mut drawn = Drawn {
         contacts: Vec::with_capacity(wanted),
@@ -297,7 +297,8 @@ fn draw_contacts(rays: &Rays, wanted: usize) -> Result<Drawn> {
     };
     let most = wanted.saturating_mul(MAX_DRAWS_PER_CONTACT);
     while drawn.contacts.len() < wanted {
-        if drawn.draws >= most {
+        // Refused at the budget, or at once when a whole batch touched nowhere.
+        if drawn.draws >= most || (drawn.draws > 0 && drawn.contacts.is_empty()) {
             return Err(Error::Input(format!(
                 "{} of {} geometric draws of {} at {} mm touched inside the region the robot's \
                  motion reaches ({} started overlapping, {} left the region): the peg does not \
@@ -436,6 +437,21 @@ mod tests {
         shallow.descent.start_depth_m = -1e-3;
         let e = Region::of(&pair, &shallow).unwrap_err().to_string();
         assert!(e.contains("does not reach into the hole"), "{e}");
+        // A motion that never leaves the free play touches nowhere: refused after one batch.
+        let mut timid = SamplerConfig::default();
+        let m = &mut timid.motion;
+        (m.scale, m.schedule.lateral_overtravel_m) = (0.5, 0.0);
+        (
+            m.schedule.angular_overtravel_rad,
+            m.schedule.max_free_tilt_rad,
+        ) = (0.0, 0.0);
+        (m.perturbation.sigma_m, m.perturbation.sigma_rad) = (0.0, 0.0);
+        let e = build(&pair, &timid, 1000, 1)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(e.contains(&format!("0 of {BATCH} geometric draws")), "{e}");
+        assert!(e.contains(&format!("{BATCH} left the region")), "{e}");
     }
 
     #[test]
