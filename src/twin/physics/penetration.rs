@@ -263,17 +263,10 @@ impl PenetrationProbe {
         margin: f64,
     ) -> Option<(Posed, Vec<usize>)> {
         let bounds = bounds_of(piece.vertices.iter().map(|p| pose * p));
-        let query = tree_box(&bounds, margin);
-        let mut near: Vec<usize> = self
-            .tree
-            .intersect_aabb(&query)
-            .map(|i| i as usize)
-            .filter(|&i| within(&bounds, &self.fixed[i].bounds, margin))
-            .collect();
+        let near = self.near_bounds(&bounds, margin);
         if near.is_empty() {
             return None;
         }
-        near.sort_unstable();
         Some((Posed::new(piece, pose), near))
     }
 
@@ -312,8 +305,7 @@ impl PenetrationProbe {
         for (p, piece) in moving.pieces.iter().enumerate() {
             let bounds = bounds_of(piece.vertices.iter().map(|v| pose * v));
             pairs.extend(
-                self.near_bounds(&bounds, margin_m)
-                    .map(|f| (p, f, hints.get(p, f))),
+                (self.near_bounds(&bounds, margin_m).into_iter()).map(|f| (p, f, hints.get(p, f))),
             );
         }
         pairs.sort_by(|a, b| {
@@ -344,14 +336,14 @@ impl PenetrationProbe {
     }
 
     /// The fixed pieces whose bounds come within `margin` (metres) of `bounds`, in index order.
-    fn near_bounds(&self, bounds: &(P3, P3), margin: f64) -> impl Iterator<Item = usize> {
+    fn near_bounds(&self, bounds: &(P3, P3), margin: f64) -> Vec<usize> {
         let mut near: Vec<usize> = (self.tree)
             .intersect_aabb(&tree_box(bounds, margin))
             .map(|i| i as usize)
             .filter(|&i| within(bounds, &self.fixed[i].bounds, margin))
             .collect();
         near.sort_unstable();
-        near.into_iter()
+        near
     }
 
     /// Every pair of a piece of `moving` at `pose` and a piece of the fixed solid whose bounds
