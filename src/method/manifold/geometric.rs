@@ -193,17 +193,19 @@ impl<'a> Rays<'a> {
             let [x, y, r, p, w] = dir.map(|d| s * d);
             Pose6([x, y, -depth, r, p, w])
         };
-        // How far a point of the peg moves per unit step: the translation plus the turn
-        // (every angle's share at the farthest vertex, summed: an upper bound).
-        let speed =
-            dir[0].hypot(dir[1]) + self.reach_m * dir[2..].iter().map(|a| a.abs()).sum::<f64>();
+        // How far the tip moves and the peg turns per unit step (the turn: every angle's share,
+        // summed, an upper bound), and a point of the peg at most (at the farthest vertex).
+        let translation = dir[0].hypot(dir[1]);
+        let turn: f64 = dir[2..].iter().map(|a| a.abs()).sum();
+        let speed = translation + self.reach_m * turn;
         // The gaps of the last step, and the step, so that the next one skips the pairs its
         // motion cannot bring closest ([`GapHints::moved`]).
         let last = std::cell::RefCell::new((GapHints::default(), None::<f64>));
         let along = |s: f64| {
             let (hints, step) = &mut *last.borrow_mut();
             if let Some(previous) = step.replace(s) {
-                hints.moved(speed * (s - previous).abs() * (1.0 + 1e-9) + 1e-12);
+                let ds = (s - previous).abs();
+                hints.moved(translation * ds, turn * ds);
             }
             self.gap(&pose(s), hints)
         };

@@ -20,7 +20,11 @@ struct Posed {
 
 impl Posed {
     fn new(piece: &ConvexPiece, iso: &Isometry3<f64>) -> Self {
-        let vertices: Vec<P3> = piece.vertices.iter().map(|p| iso * p).collect();
+        Posed::with_vertices(piece, iso, piece.vertices.iter().map(|p| iso * p).collect())
+    }
+
+    /// The piece at `iso`, given its `vertices` placed there.
+    fn with_vertices(piece: &ConvexPiece, iso: &Isometry3<f64>, vertices: Vec<P3>) -> Self {
         let bounds = bounds_of(vertices.iter().copied());
         Posed {
             vertices,
@@ -73,35 +77,31 @@ struct Hint {
 
 /// Each piece pair's last gap (or a lower bound of it) and axis, for
 /// [`PenetrationProbe::signed_gap`] (one per search).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct GapHints {
     /// Sorted by the pair (moving piece, fixed piece).
     pairs: Vec<((usize, usize), Hint)>,
-    /// How far any point of the moving solid may have moved since the last call, m.
-    moved_m: f64,
-}
-
-impl Default for GapHints {
-    fn default() -> Self {
-        GapHints {
-            pairs: Vec::new(),
-            moved_m: f64::INFINITY,
-        }
-    }
+    /// How far the moving solid may have moved since the last call: its origin, m, and its
+    /// turn, rad; `None`: unknown.
+    moved: Option<(f64, f64)>,
+    /// Each moving piece's largest distance of a vertex from the moving solid's origin, m.
+    radii: Vec<f64>,
 }
 
 impl GapHints {
-    /// Tells the next call that no point of the moving solid has moved more than `m` metres
-    /// since the last one (`f64::INFINITY`, the default: unknown).
-    pub fn moved(&mut self, m: f64) {
-        self.moved_m = m;
+    /// Tells the next call that the moving solid's origin has moved no more than
+    /// `translation_m` since the last one, and the solid turned by no more than `turn_rad`: no
+    /// point then moved farther than `translation_m + turn_rad` times its distance from the
+    /// origin.
+    pub fn moved(&mut self, translation_m: f64, turn_rad: f64) {
+        self.moved = Some((translation_m, turn_rad));
     }
 
-    fn get(&self, piece: usize, fixed: usize) -> Option<Hint> {
-        (self.pairs)
-            .binary_search_by_key(&(piece, fixed), |(k, _)| *k)
-            .ok()
-            .map(|i| self.pairs[i].1)
+    /// How far any point of moving piece `p` may have moved since the last call, m.
+    fn moved_m(&self, p: usize) -> f64 {
+        self.moved.map_or(f64::INFINITY, |(t, turn)| {
+            (t + turn * self.radii[p]) * (1.0 + 1e-9) + 1e-12
+        })
     }
 }
 
@@ -188,13 +188,20 @@ fn least_overlap(moving: &Posed, fixed: &Posed, margin: f64) -> Option<(f64, Vec
     Some(best)
 }
 
+/// The least and largest projection of `points` on `axis` (plain comparisons: the coordinates
+/// are finite, and they let the compiler keep the loop tight).
 fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
-    points
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            let d = p.coords.dot(axis);
-            (lo.min(d), hi.max(d))
-        })
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in points {
+        let d = p.x * axis.x + p.y * axis.y + p.z * axis.z;
+        if d < lo {
+            lo = d;
+        }
+        if d > hi {
+            hi = d;
+        }
+    }
+    (lo, hi)
 }
 
 /// Whether two bounding boxes come within `margin` (metres) of each other on every axis.
@@ -287,13 +294,13 @@ impl PenetrationProbe {
     /// the deepest pair; zero exactly when touching; positive: a lower bound of the distance.
     ///
     /// `hints` remembers, from the previous call, a lower bound of each pair's signed distance
-    /// and the axis that gave it: the pairs are tried closest first and each on its last axis
-    /// first. When the caller bounds how far any point of the solid moved since
-    /// ([`GapHints::moved`]), a pair's signed distance is at least its bound less that motion (the
+    /// and the axis that gave it: the pair closest then is tried first and each pair on its last
+    /// axis first. When the caller bounds how far the solid moved since ([`GapHints::moved`]), a
+    /// pair's signed distance is at least its bound less how far its moving piece moved (the
     /// signed distance of two convex bodies changes no faster than their points move); a pair
     /// whose bound is still no smaller than the least gap found so far is not tested, nor placed.
-    /// A positive value may then be larger than without the hints (never larger than the
-    /// distance); its sign, and a negative value, do not depend on them.
+    /// The hints only save work: a pair left out, or whose test stops early, cannot be below the
+    /// least found, so the value is the same without them.
     pub fn signed_gap(
         &self,
         moving: &Solid,
@@ -301,49 +308,92 @@ impl PenetrationProbe {
         margin_m: f64,
         hints: &mut GapHints,
     ) -> f64 {
-        let mut pairs: Vec<(usize, usize, Option<Hint>)> = Vec::new();
-        for (p, piece) in moving.pieces.iter().enumerate() {
-            let bounds = bounds_of(piece.vertices.iter().map(|v| pose * v));
-            pairs.extend(
-                (self.near_bounds(&bounds, margin_m).into_iter()).map(|f| (p, f, hints.get(p, f))),
-            );
+        if hints.radii.len() != moving.pieces.len() {
+            hints.radii = (moving.pieces.iter())
+                .map(|p| {
+                    p.vertices
+                        .iter()
+                        .map(|v| v.coords.norm())
+                        .fold(0.0, f64::max)
+                })
+                .collect();
         }
-        pairs.sort_by(|a, b| {
-            let gap = |h: &Option<Hint>| h.map_or(f64::INFINITY, |h| h.gap_m);
-            gap(&a.2).total_cmp(&gap(&b.2))
-        });
+        // The pairs near, in (moving, fixed) order, each with its hint (both lists are sorted).
+        let mut pairs: Vec<(usize, usize, Option<Hint>)> = Vec::new();
+        let mut placed: Vec<Option<Vec<P3>>> = vec![None; moving.pieces.len()];
+        let mut known = hints.pairs.iter().peekable();
+        let mut near = Vec::new();
+        for (p, piece) in moving.pieces.iter().enumerate() {
+            let vertices: Vec<P3> = piece.vertices.iter().map(|v| pose * v).collect();
+            self.near_into(&bounds_of(vertices.iter().copied()), margin_m, &mut near);
+            if near.is_empty() {
+                continue;
+            }
+            for &f in &near {
+                let hint = loop {
+                    match known.peek() {
+                        Some(&&(k, h)) if k == (p, f) => break Some(h),
+                        Some(&&(k, _)) if k < (p, f) => _ = known.next(),
+                        _ => break None,
+                    }
+                };
+                pairs.push((p, f, hint));
+            }
+            placed[p] = Some(vertices);
+        }
+        // The pair closest last time first: the least gap falls at once and most pairs are
+        // then skipped; the result does not depend on the order.
+        let gap = |h: &Option<Hint>| h.map_or(f64::INFINITY, |h| h.gap_m);
+        let closest =
+            (0..pairs.len()).min_by(|&a, &b| gap(&pairs[a].2).total_cmp(&gap(&pairs[b].2)));
+        let order = closest
+            .into_iter()
+            .chain((0..pairs.len()).filter(|&i| Some(i) != closest));
         let mut posed: Vec<Option<Posed>> = vec![None; moving.pieces.len()];
         let mut least = margin_m;
-        let mut fresh = Vec::with_capacity(pairs.len());
-        for &(p, f, hint) in &pairs {
+        let mut fresh: Vec<Option<Hint>> = vec![None; pairs.len()];
+        for i in order {
+            let (p, f, hint) = pairs[i];
             let bound = hint.map(|h| Hint {
-                gap_m: h.gap_m - hints.moved_m,
+                gap_m: h.gap_m - hints.moved_m(p),
                 ..h
             });
             if let Some(b) = bound.filter(|b| b.gap_m >= least) {
-                fresh.push(((p, f), b));
+                fresh[i] = Some(b);
                 continue;
             }
-            let placed = posed[p].get_or_insert_with(|| Posed::new(&moving.pieces[p], pose));
+            let placed = posed[p].get_or_insert_with(|| {
+                let vertices = placed[p].take().expect("each piece's vertices are placed");
+                Posed::with_vertices(&moving.pieces[p], pose, vertices)
+            });
             let (gap, axis) = posed_gap(placed, &self.fixed[f], least, hint.map(|h| h.axis));
             least = least.min(gap);
-            fresh.push(((p, f), Hint { axis, gap_m: gap }));
+            fresh[i] = Some(Hint { axis, gap_m: gap });
         }
-        fresh.sort_unstable_by_key(|(k, _)| *k);
-        hints.pairs = fresh;
-        hints.moved_m = f64::INFINITY;
+        hints.pairs = (pairs.iter().zip(fresh))
+            .map(|(&(p, f, _), h)| ((p, f), h.expect("every pair is tested or bounded")))
+            .collect();
+        hints.moved = None;
         least
     }
 
     /// The fixed pieces whose bounds come within `margin` (metres) of `bounds`, in index order.
     fn near_bounds(&self, bounds: &(P3, P3), margin: f64) -> Vec<usize> {
-        let mut near: Vec<usize> = (self.tree)
-            .intersect_aabb(&tree_box(bounds, margin))
-            .map(|i| i as usize)
-            .filter(|&i| within(bounds, &self.fixed[i].bounds, margin))
-            .collect();
-        near.sort_unstable();
+        let mut near = Vec::new();
+        self.near_into(bounds, margin, &mut near);
         near
+    }
+
+    /// [`Self::near_bounds`] into `near` (cleared first).
+    fn near_into(&self, bounds: &(P3, P3), margin: f64, near: &mut Vec<usize>) {
+        near.clear();
+        near.extend(
+            (self.tree)
+                .intersect_aabb(&tree_box(bounds, margin))
+                .map(|i| i as usize)
+                .filter(|&i| within(bounds, &self.fixed[i].bounds, margin)),
+        );
+        near.sort_unstable();
     }
 
     /// Every pair of a piece of `moving` at `pose` and a piece of the fixed solid whose bounds
