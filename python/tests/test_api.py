@@ -57,6 +57,20 @@ def test_a_manifold_trial_is_the_command_lines_record(cli: Path, small_manifold:
     assert record["errors"] is not None and record["outcome"] in ("success", "failure")
 
 
+def test_a_geometric_manifold_trial_is_the_command_lines_record(cli: Path, tmp_path: Path) -> None:
+    # The command line builds the cached geometric manifold; the package must find and use it.
+    cache = tmp_path / "cache"
+    expected = cli_trial(
+        cli, "--geometry", "cross", "--clearance-mm", "0.5", "--seed", "6", "--t-obs", "3",
+        "--sampler", "geometric", "--cache-dir", str(cache),
+    )
+    record = pegtwin.trial("cross", 0.5, seed=6, t_obs_s=3, sampler="geometric", cache_dir=cache)
+    assert record == expected
+    assert any("-geo" in p.name for p in cache.glob("*.manifold")), list(cache.iterdir())
+    with pytest.raises(ValueError, match="sampler 'lidar'"):
+        pegtwin.trial("cross", 0.5, sampler="lidar")
+
+
 @pytest.mark.parametrize(
     "kwargs, cli_args",
     [

@@ -299,8 +299,8 @@ impl PenetrationProbe {
     /// pair's signed distance is at least its bound less how far its moving piece moved (the
     /// signed distance of two convex bodies changes no faster than their points move); a pair
     /// whose bound is still no smaller than the least gap found so far is not tested, nor placed.
-    /// The hints only save work: a pair left out, or whose test stops early, cannot be below the
-    /// least found, so the value is the same without them.
+    /// A positive value may then be larger than without the hints (never larger than the
+    /// distance); its sign, and a negative value, do not depend on them.
     pub fn signed_gap(
         &self,
         moving: &Solid,
@@ -342,7 +342,7 @@ impl PenetrationProbe {
             placed[p] = Some(vertices);
         }
         // The pair closest last time first: the least gap falls at once and most pairs are
-        // then skipped; the result does not depend on the order.
+        // then skipped.
         let gap = |h: &Option<Hint>| h.map_or(f64::INFINITY, |h| h.gap_m);
         let closest =
             (0..pairs.len()).min_by(|&a, &b| gap(&pairs[a].2).total_cmp(&gap(&pairs[b].2)));
