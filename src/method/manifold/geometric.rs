@@ -10,7 +10,8 @@
 //! (x, y, roll, pitch, yaw) from the centred pose at that depth, each axis a normal variate scaled
 //! by the free play of that axis (half the clearance sideways, `c / d` in tilt, half the
 //! clearance over the peg's radius in yaw). The peg moves along the direction until it first
-//! overlaps the hole (doubling, then bisection until no point of the peg moves more than
+//! overlaps the hole (doubling from the step at which the direction has used up the free play,
+//! then bisection until no point of the peg moves more than
 //! [`TOUCH_TOLERANCE_M`] across the bracket); the free end of the bracket is the contact pose. A
 //! draw whose centred pose already overlaps, or whose ray leaves the region before touching, is
 //! dropped (the robot's motion does not go there). The draws are then downsampled by the same
@@ -44,7 +45,7 @@ pub const TOUCH_TOLERANCE_M: f64 = 0.5e-6;
 pub const PERTURBATION_REACH_SIGMAS: f64 = 2.0;
 /// What decides a geometric manifold beyond its motion, points and seed: part of its cache key
 /// (a change of the method here builds new files instead of reusing stale ones).
-pub const RULE: &str = "geometric v1: 2 draws per point, 0.5 um, 2 sigma";
+pub const RULE: &str = "geometric v2: 2 draws per point, 0.5 um, 2 sigma, first step 1/|variates|";
 /// The signed gap's margin, as a share of the clearance: pairs farther apart count as this far.
 /// A narrower margin tests fewer piece pairs per pose but flattens the gap away from contact, so
 /// the root finder needs more poses; a quarter was the fastest of 1/16, 1/4 and 1 on the cross
@@ -185,10 +186,11 @@ impl<'a> Rays<'a> {
             tilt.min(pitch),
             (gap / self.radius_m).min(yaw),
         ];
-        let dir: [f64; 5] = std::array::from_fn(|k| {
-            let n: f64 = StandardNormal.sample(&mut rng);
-            scales[k] * n
-        });
+        let variates: [f64; 5] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
+        let dir: [f64; 5] = std::array::from_fn(|k| scales[k] * variates[k]);
+        // The step at which the direction has used up the free play (the variates' length in
+        // units of it): where contact is likely, the first step tried.
+        let first = 1.0 / variates.iter().map(|v| v * v).sum::<f64>().sqrt();
         let pose = |s: f64| {
             let [x, y, r, p, w] = dir.map(|d| s * d);
             Pose6([x, y, -depth, r, p, w])
@@ -211,6 +213,7 @@ impl<'a> Rays<'a> {
         };
         match first_touch(
             along,
+            first,
             self.region.reach(depth, &dir),
             TOUCH_TOLERANCE_M / speed,
         ) {
@@ -234,15 +237,15 @@ enum Touch {
 
 /// The first root of `gap(s)` for `s` in `[0, limit]`, bracketed to `tolerance` (the free end
 /// returned), where `gap` is a signed gap, continuous and exact at zero. The bracket is found by
-/// doubling from 1, then narrowed by regula falsi with the Illinois modification (superlinear on
+/// doubling from the step `first`, then narrowed by regula falsi with the Illinois modification (superlinear on
 /// piecewise-smooth gaps), each step kept half a tolerance inside the bracket so that the last
 /// two close it.
-fn first_touch(gap: impl Fn(f64) -> f64, limit: f64, tolerance: f64) -> Touch {
+fn first_touch(gap: impl Fn(f64) -> f64, first: f64, limit: f64, tolerance: f64) -> Touch {
     let (mut lo, mut f_lo) = (0.0, gap(0.0));
     if f_lo <= 0.0 {
         return Touch::Blocked;
     }
-    let mut hi = 1.0f64.min(limit);
+    let mut hi = first.min(limit);
     let mut f_hi = gap(hi);
     while f_hi > 0.0 {
         if hi >= limit {
@@ -392,19 +395,19 @@ mod tests {
                 0.5 - (s - 0.5) * 2.5
             }
         };
-        let Touch::At(s) = first_touch(gap, 10.0, 1e-9) else {
+        let Touch::At(s) = first_touch(gap, 1.0, 10.0, 1e-9) else {
             panic!("a root in range");
         };
         assert!(s <= 0.7 && 0.7 - s <= 1e-9, "{s}");
-        assert_eq!(first_touch(gap, 0.6, 1e-9), Touch::Free);
-        assert_eq!(first_touch(|s| s - 1.0, 10.0, 1e-9), Touch::Blocked);
+        assert_eq!(first_touch(gap, 1.0, 0.6, 1e-9), Touch::Free);
+        assert_eq!(first_touch(|s| s - 1.0, 1.0, 10.0, 1e-9), Touch::Blocked);
         assert_eq!(
-            first_touch(|_| 0.0, 10.0, 1e-9),
+            first_touch(|_| 0.0, 1.0, 10.0, 1e-9),
             Touch::Blocked,
             "touching at the start"
         );
         // A root far beyond the first step: found by doubling.
-        let Touch::At(s) = first_touch(|s| 37.0 - s, 100.0, 1e-9) else {
+        let Touch::At(s) = first_touch(|s| 37.0 - s, 1.0, 100.0, 1e-9) else {
             panic!("a root in range");
         };
         assert!((37.0 - s) <= 1e-9 && s <= 37.0, "{s}");
