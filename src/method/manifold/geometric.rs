@@ -11,8 +11,8 @@
 //! by the free play of that axis (half the clearance sideways, `c / d` in tilt, half the
 //! clearance over the peg's radius in yaw). The peg moves along the direction until it first
 //! overlaps the hole (doubling from the step at which the direction has used up the free play,
-//! then bisection until no point of the peg moves more than
-//! [`TOUCH_TOLERANCE_M`] across the bracket); the free end of the bracket is the contact pose. A
+//! then regula falsi until no point of the peg moves more than [`TOUCH_TOLERANCE_M`] across the
+//! bracket); the free end of the bracket is the contact pose. A
 //! draw whose centred pose already overlaps, or whose ray leaves the region before touching, is
 //! dropped (the robot's motion does not go there). The draws are then downsampled by the same
 //! voxel grid as the robot's ([`downsample`]), so that every region of the manifold counts by the
@@ -237,9 +237,9 @@ enum Touch {
 
 /// The first root of `gap(s)` for `s` in `[0, limit]`, bracketed to `tolerance` (the free end
 /// returned), where `gap` is a signed gap, continuous and exact at zero. The bracket is found by
-/// doubling from the step `first`, then narrowed by regula falsi with the Illinois modification (superlinear on
-/// piecewise-smooth gaps), each step kept half a tolerance inside the bracket so that the last
-/// two close it.
+/// doubling from the step `first`, then narrowed by regula falsi with the Illinois modification
+/// (superlinear on piecewise-smooth gaps), each step kept half a tolerance inside the bracket so
+/// that the last two close it.
 fn first_touch(gap: impl Fn(f64) -> f64, first: f64, limit: f64, tolerance: f64) -> Touch {
     let (mut lo, mut f_lo) = (0.0, gap(0.0));
     if f_lo <= 0.0 {
