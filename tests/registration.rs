@@ -223,3 +223,42 @@ fn too_few_observations_or_bad_config_are_errors() {
     let err = register(&m, &bad, &TRUTH, &RegistrationConfig::default()).unwrap_err();
     assert!(err.to_string().contains("observation 3"), "{err}");
 }
+
+/// The estimate's uncertainty follows the data: its covariance is symmetric with the reported
+/// standard deviations on its diagonal; sixteen times the observations (independent here) give
+/// x, y and yaw a standard deviation several times smaller; and z, the axis the data pin least,
+/// has the largest positional one.
+#[test]
+fn the_uncertainty_shrinks_with_more_observations_and_is_largest_along_z() {
+    let pair = SyntheticPair::cross(0.03, 0.01, 0.5e-3);
+    let m = manifold(&pair, 50_000);
+    let init = TRUTH.compose(&offset(3));
+    let std_of = |n: usize| {
+        let obs = pair.observe(&TRUTH, n, OBSERVATION_DEPTH_M, NOISE, 5);
+        let r = register(&m, &obs, &init, &RegistrationConfig::default()).unwrap();
+        for i in 0..6 {
+            let sd = r.covariance[i][i].sqrt();
+            assert!((sd - r.estimate_std[i]).abs() <= 1e-12 * sd);
+            for j in 0..6 {
+                let (a, b) = (r.covariance[i][j], r.covariance[j][i]);
+                assert!(
+                    (a - b).abs() <= 1e-9 * (a.abs() + b.abs()),
+                    "{i} {j}: {a} {b}"
+                );
+            }
+        }
+        r.estimate_std
+    };
+    let few = std_of(250);
+    let many = std_of(4000);
+    println!("std of 250 observations {few:?}\nstd of 4000 {many:?}");
+    for a in [0, 1, 5] {
+        assert!(
+            few[a] > 2.0 * many[a],
+            "axis {a}: {} vs {}",
+            few[a],
+            many[a]
+        );
+    }
+    assert!(many[2] > many[0] && many[2] > many[1], "{many:?}");
+}

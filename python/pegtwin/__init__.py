@@ -157,8 +157,10 @@ def _flat_record(record: Dict[str, Any]) -> Dict[str, Any]:
     for name in ["x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"]:
         row[f"error_{name}"] = errors.get(name, np.nan)
     estimate = result.pop("estimate")
+    std = result.pop("estimate_std", None)
     for i, name in enumerate(["x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"]):
         row[f"estimate_{name}"] = np.nan if estimate is None else estimate[i]
+        row[f"estimate_std_{name}"] = np.nan if std is None else std[i]
     fault = result.pop("fault")
     row["fault_reason"] = None if fault is None else fault["reason"]
     row["fault_time_s"] = np.nan if fault is None else fault["time_s"]
@@ -180,6 +182,8 @@ def load_trials(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
     ``mean_fz_n``, ``contact_observations``, ``observations_used``, the hole offset
     ``offset_x_mm`` ... ``offset_yaw_deg``, the estimate's errors ``error_x_mm`` ...
     ``error_yaw_deg`` (NaN for ``direct``), the estimate ``estimate_x_m`` ... ``estimate_yaw_rad``,
+    its standard deviations ``estimate_std_x_m`` ... ``estimate_std_yaw_rad`` and covariance
+    ``estimate_covariance`` (6 rows of 6, m and rad, in the estimated hole frame; None for ``direct``),
     ``fault_reason``, ``fault_time_s`` and ``fault_source`` (who put in the energy that ended a
     ``sim_fault``: ``drives``, the commanded motion; ``contacts`` or ``integration``, the
     physics), ``stopped``, the phase times ``time_search_s`` ...
@@ -282,7 +286,9 @@ def register(
         The registration (``pegtwin register --json`` prints it under ``result``): ``estimate``
         (the hole pose ``base_T_hole`` as a numpy array, m and rad), ``solver``, ``restarts``
         (each with its initial and final pose, iterations, residual and whether it was
-        rejected), ``kept`` and ``time`` (wall seconds per stage).
+        rejected), ``kept``, ``estimate_std`` (the estimate's standard deviation per axis, m and
+        rad, in the estimated hole frame, as a numpy array), ``covariance`` (its 6 x 6
+        covariance, a numpy array) and ``time`` (wall seconds per stage).
     """
     if not isinstance(manifold, Manifold):
         manifold = Manifold.load(manifold)
@@ -304,5 +310,6 @@ def register(
         normal_k=normal_k,
     )
     result = json.loads(text)
-    result["estimate"] = np.asarray(result["estimate"], dtype=np.float64)
+    for key in ["estimate", "estimate_std", "covariance"]:
+        result[key] = np.asarray(result[key], dtype=np.float64)
     return result

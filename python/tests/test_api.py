@@ -139,7 +139,7 @@ def test_a_campaign_writes_its_folder_and_loads_as_dataframes(
         "cell", "trial", "seed", "geometry", "clearance_mm", "method", "t_obs_s", "outcome",
         "success", "final_depth_mm", "peak_fz_n", "mean_fz_n", "offset_x_mm", "offset_yaw_deg",
         "error_x_mm", "error_yaw_deg", "estimate_x_m", "fault_reason", "fault_source",
-        "time_observe_s", "insert_fz_n", "insert_end",
+        "time_observe_s", "insert_fz_n", "insert_end", "estimate_std_x_m", "estimate_std_yaw_rad",
     ]:
         assert column in trials.columns, column
     assert set(trials["method"]) == {"manifold", "direct"}
@@ -147,6 +147,8 @@ def test_a_campaign_writes_its_folder_and_loads_as_dataframes(
     assert direct["error_x_mm"].isna().all()
     manifold = trials[trials["method"] == "manifold"]
     assert manifold["error_x_mm"].notna().all()
+    assert direct["estimate_std_x_m"].isna().all()
+    assert (manifold["estimate_std_x_m"] > 0).all()
 
     summary = pegtwin.load_summary(out)
     assert len(summary) == 2 and "geometry" in summary.columns
@@ -244,6 +246,12 @@ def test_a_manifold_loads_as_arrays_and_registers(cli: Path, tmp_path: Path) -> 
     assert o.returncode == 0, o.stderr
     cli_estimate = json.loads(o.stdout)["estimate_base_T_hole"]
     assert np.array_equal(result["estimate"], np.asarray(cli_estimate))
+    # The estimate's uncertainty: a positive std per axis, from a symmetric covariance.
+    std, cov = result["estimate_std"], result["covariance"]
+    assert std.shape == (6,) and np.all(std > 0) and np.all(np.isfinite(std))
+    assert cov.shape == (6, 6) and np.allclose(cov, cov.T, rtol=1e-9, atol=0)
+    assert np.allclose(np.sqrt(np.diag(cov)), std, rtol=1e-12, atol=0)
+    assert np.array_equal(std, np.asarray(json.loads(o.stdout)["estimate_std"]))
 
     with pytest.raises(ValueError, match="expected \\(N, 6\\)"):
         pegtwin.register(manifold, observations[:, :5], init)

@@ -230,6 +230,7 @@ mod tests {
             success_ci95: wilson_interval(successes, 10),
             mae: Some([mae_x, 0.1, 2.0, 0.5, 0.5, 0.1]),
             abs_error_std: Some([0.1; 6]),
+            coverage_2sigma: None,
             peak_fz_success_n: Some(MeanStd {
                 mean: fz,
                 std: 1.0,

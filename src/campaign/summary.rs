@@ -104,6 +104,9 @@ pub fn two_passes(
 /// Axis names of the error columns.
 pub const AXES: [&str; 6] = ["x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"];
 
+/// Axis names of the coverage columns (a share has no unit).
+pub const COVERAGE_AXES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+
 /// The statistics of one cell.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CellSummary {
@@ -122,6 +125,10 @@ pub struct CellSummary {
     pub mae: Option<[f64; 6]>,
     /// Standard deviation of the absolute error per axis.
     pub abs_error_std: Option<[f64; 6]>,
+    /// The share of the trials with an estimate whose true error on each axis lies within two of
+    /// the estimate's standard deviations (`estimate_std`): 0.954 when they are calibrated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coverage_2sigma: Option<[f64; 6]>,
     pub peak_fz_success_n: Option<MeanStd>,
     pub peak_fz_failure_n: Option<MeanStd>,
     /// Mean simulated time per phase, s: search, observe, retract, align, insert.
@@ -176,6 +183,22 @@ pub struct Summary {
     /// several clearances, first one group per clearance, then every clearance pooled
     /// (clearance 0); with one, its groups at that clearance.
     pub pooled: Vec<CellSummary>,
+}
+
+/// A record's error on each axis in units of its estimate's standard deviation (signed), when it
+/// has both.
+pub fn standardised_errors(r: &TrialRecord) -> Option<[f64; 6]> {
+    let e = r.result.errors.as_ref()?;
+    let std = r.result.estimate_std?;
+    let si = [
+        e.x_mm * 1e-3,
+        e.y_mm * 1e-3,
+        e.z_mm * 1e-3,
+        e.roll_deg.to_radians(),
+        e.pitch_deg.to_radians(),
+        e.yaw_deg.to_radians(),
+    ];
+    Some(std::array::from_fn(|a| si[a] / std[a]))
 }
 
 /// Absolute errors of a record, x y z mm, roll pitch yaw deg.
@@ -308,6 +331,10 @@ struct CellTally {
     phase_sums_s: [f64; 5],
     partial_to_full_s: Moments,
     failure_modes: FailureModes,
+    /// Trials with an estimate and its standard deviations, and of them those whose error lies
+    /// within two standard deviations, per axis.
+    with_std: usize,
+    within_2sigma: [usize; 6],
 }
 
 impl CellTally {
@@ -335,6 +362,10 @@ impl CellTally {
             self.sim_faults += usize::from(res.fault.is_some());
             self.error_trials += usize::from(res.error_message.is_some());
             self.failure_modes.add(res);
+            if let Some(z) = standardised_errors(r) {
+                self.with_std += 1;
+                (0..6).for_each(|a| self.within_2sigma[a] += usize::from(z[a].abs() <= 2.0));
+            }
             let t = &res.times;
             let phases = [t.search_s, t.observe_s, t.retract_s, t.align_s, t.insert_s];
             (0..5).for_each(|p| self.phase_sums_s[p] += phases[p]);
@@ -357,6 +388,8 @@ impl CellTally {
             success_ci95: wilson_interval(self.successes, n),
             mae: per_axis(|m| m.mean),
             abs_error_std: per_axis(|m| m.std),
+            coverage_2sigma: (self.with_std > 0)
+                .then(|| self.within_2sigma.map(|k| k as f64 / self.with_std as f64)),
             peak_fz_success_n: self.peak_fz_success.finish(),
             peak_fz_failure_n: self.peak_fz_failure.finish(),
             mean_phase_s: self.phase_sums_s.map(per_trial),
@@ -409,6 +442,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
         ]
         .map(String::from),
     );
+    header.extend(COVERAGE_AXES.iter().map(|a| format!("coverage_2sigma_{a}")));
     w.write_record(&header).expect("in-memory csv");
     for c in summary.cells.iter().chain(&summary.pooled) {
         let mut row = vec![
@@ -435,6 +469,7 @@ pub fn summary_csv(summary: &Summary) -> Vec<u8> {
         row.push(opt(c.partial_to_full_s.map(|m| m.mean), 3));
         let f = c.failure_modes;
         row.extend([f.jam, f.stall, f.wedge].map(|n| n.to_string()));
+        row.extend((0..6).map(|a| opt(c.coverage_2sigma.map(|v| v[a]), 4)));
         w.write_record(&row).expect("in-memory csv");
     }
     w.into_inner().expect("in-memory csv")
@@ -544,6 +579,73 @@ mod tests {
         assert_eq!(groups.len(), 1);
         assert_eq!(groups[0].clearance_mm, 0.1);
         assert_eq!(of, vec![vec![0], vec![0]]);
+    }
+
+    /// A manifold trial's record with `errors` (mm, deg) and `estimate_std` (m, rad).
+    fn estimated(errors: [f64; 6], std: [f64; 6]) -> TrialRecord {
+        let [x_mm, y_mm, z_mm, roll_deg, pitch_deg, yaw_deg] = errors;
+        serde_json::from_value(serde_json::json!({
+            "cell": 0, "trial": 0, "seed": 1, "geometry": "cross", "clearance_mm": 0.5,
+            "method": "manifold", "start": "partial", "t_obs_s": 10.0, "offset": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            "outcome": "success", "stopped": null, "success": true, "fault": null,
+            "estimate": [0.6, 0.0, 0.2, 0.0, 0.0, 0.0], "estimate_std": std,
+            "errors": { "x_mm": x_mm, "y_mm": y_mm, "z_mm": z_mm, "roll_deg": roll_deg,
+                        "pitch_deg": pitch_deg, "yaw_deg": yaw_deg },
+            "final_depth_mm": 30.0, "contact_observations": 1000, "observations_used": 1000,
+            "peak_fz_n": 1.0, "mean_fz_n": 1.0, "insert_fz_n": [],
+            "times": { "search_s": 0.0, "observe_s": 10.0, "retract_s": 0.0, "align_s": 0.0,
+                       "insert_s": 1.0 }
+        }))
+        .expect("a record")
+    }
+
+    #[test]
+    fn coverage_counts_the_errors_within_two_standard_deviations_per_axis() {
+        // std 0.1 mm and 1 deg (in m and rad): 0.15 mm / 1.5 deg lie within 2 sigma, 0.25 mm /
+        // 2.5 deg beyond.
+        let std = [
+            1e-4,
+            1e-4,
+            1e-4,
+            1f64.to_radians(),
+            1f64.to_radians(),
+            1f64.to_radians(),
+        ];
+        let inside = estimated([0.15, -0.15, 0.15, 1.5, -1.5, 1.5], std);
+        let outside_x = estimated([0.25, 0.0, 0.0, 0.0, 0.0, -2.5], std);
+        let z = standardised_errors(&outside_x).unwrap();
+        assert!(
+            (z[0] - 2.5).abs() < 1e-9 && (z[5] + 2.5).abs() < 1e-9,
+            "{z:?}"
+        );
+        let mut tally = CellTally::default();
+        for r in [&inside, &outside_x] {
+            tally.add(r, Pass::Mean);
+            tally.add(r, Pass::Spread);
+        }
+        let summary = tally.summary(cell("cross", 0.5, Method::Manifold, 10.0));
+        assert_eq!(
+            summary.coverage_2sigma,
+            Some([0.5, 1.0, 1.0, 1.0, 1.0, 0.5])
+        );
+        // A trial with no estimate (the direct baseline) is left out of the coverage.
+        let mut direct = CellTally::default();
+        direct.add(&inside.clone().without_estimate(), Pass::Mean);
+        assert_eq!(
+            direct
+                .summary(cell("cross", 0.5, Method::Direct, 10.0))
+                .coverage_2sigma,
+            None
+        );
+    }
+
+    impl TrialRecord {
+        fn without_estimate(mut self) -> Self {
+            self.result.estimate = None;
+            self.result.estimate_std = None;
+            self.result.errors = None;
+            self
+        }
     }
 
     #[test]

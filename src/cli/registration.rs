@@ -510,6 +510,7 @@ pub fn register_command(args: RegisterArgs) -> Result<i32> {
         let v = serde_json::json!({
             "estimate_base_T_hole": result.estimate,
             "estimate_mm_deg": result.estimate.to_mm_deg(),
+            "estimate_std": result.estimate_std,
             "manifold": { "file": args.manifold.display().to_string(), "points": manifold.len(), "meta": manifold.meta, "load_s": load_s },
             "observations": obs.len(),
             "config": cfg,
@@ -532,6 +533,11 @@ fn print_registration(r: &Registration, load_s: f64) {
     println!(
         "             ({:.3} mm, {:.3} mm, {:.3} mm, {:.3} deg, {:.3} deg, {:.3} deg)",
         h[0], h[1], h[2], h[3], h[4], h[5]
+    );
+    let s = Pose6(r.estimate_std).to_mm_deg();
+    println!(
+        "std (hole frame)  x {:.3} mm  y {:.3} mm  z {:.3} mm  roll {:.3} deg  pitch {:.3} deg  yaw {:.3} deg",
+        s[0], s[1], s[2], s[3], s[4], s[5]
     );
     let iters: Vec<usize> = r.restarts.iter().map(|x| x.iterations).collect();
     let mean_iters = iters.iter().sum::<usize>() as f64 / iters.len().max(1) as f64;

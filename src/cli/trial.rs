@@ -210,6 +210,13 @@ fn print_result(r: &TrialResult) {
             e.x_mm, e.y_mm, e.z_mm, e.roll_deg, e.pitch_deg, e.yaw_deg
         );
     }
+    if let Some(std) = r.estimate_std {
+        let s = pegtwin::pose::Pose6(std).to_mm_deg();
+        println!(
+            "estimate std:   x {:.3} y {:.3} z {:.3} mm, roll {:.3} pitch {:.3} yaw {:.3} deg",
+            s[0], s[1], s[2], s[3], s[4], s[5]
+        );
+    }
     println!(
         "outcome: {} ({}); {} contact observations, {} used; Fz peak {:.1} N, mean {:.1} N",
         r.outcome,

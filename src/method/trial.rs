@@ -16,7 +16,7 @@ use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::insert::{InsertEnd, Insertion, insert};
 use crate::method::manifold::Manifold;
 use crate::method::observe::{Observation, ObservationPhase};
-use crate::method::register::{RegistrationConfig, register};
+use crate::method::register::{Registration, RegistrationConfig, register};
 use crate::method::search::{search, start_pose};
 use crate::method::seeds::TrialSeeds;
 use crate::method::session::{Phase, Recorder, Session};
@@ -239,7 +239,7 @@ pub fn finish_trial(
     if session.fault().is_none() {
         (stages.estimate, stages.register_wall_s) =
             estimate_hole(manifold, &observations, &believed, config, &setup.seeds)?;
-        let estimate = stages.estimate.as_ref();
+        let estimate = stages.estimate.as_ref().map(|r| &r.estimate);
         session.record_registration(&observations, &believed, estimate);
         stages.insertion = insert(
             &mut session,
@@ -315,6 +315,13 @@ pub struct TrialResult {
     pub error_message: Option<String>,
     /// Estimated `base_T_hole` (m, rad), manifold method only.
     pub estimate: Option<[f64; 6]>,
+    /// The standard deviation of the estimate's error per axis, in the estimated hole frame
+    /// (x, y, z m; roll, pitch, yaw rad): the registration's uncertainty (docs/registration.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate_std: Option<[f64; 6]>,
+    /// The covariance they come from (m and rad, row by row).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate_covariance: Option<[[f64; 6]; 6]>,
     pub errors: Option<AxisErrors>,
     /// Final tip depth below the true mouth, mm (none when the trial stopped before inserting).
     pub final_depth_mm: Option<f64>,
@@ -464,6 +471,8 @@ impl Setup {
             fault,
             error_message: None,
             estimate: None,
+            estimate_std: None,
+            estimate_covariance: None,
             errors: None,
             final_depth_mm: None,
             contact_observations: 0,
@@ -495,10 +504,13 @@ impl Setup {
         TrialResult {
             outcome: outcome(fault.is_some(), success).into(),
             success,
-            estimate: stages.estimate.map(|e| e.0),
+            estimate: stages.estimate.as_ref().map(|r| r.estimate.0),
+            estimate_std: stages.estimate.as_ref().map(|r| r.estimate_std),
+            estimate_covariance: stages.estimate.as_ref().map(|r| r.covariance),
             errors: stages
                 .estimate
-                .map(|e| axis_errors(&self.truth, &e.to_iso())),
+                .as_ref()
+                .map(|r| axis_errors(&self.truth, &r.estimate.to_iso())),
             final_depth_mm: Some(final_depth * 1e3),
             contact_observations: stages.observation.contacts.len(),
             observations_used: stages.observations_used,
@@ -560,7 +572,7 @@ struct Stages {
     search_s: f64,
     observation: Observation,
     observations_used: usize,
-    estimate: Option<Pose6>,
+    estimate: Option<Registration>,
     register_wall_s: f64,
     insertion: Insertion,
     dt_s: f64,
@@ -595,7 +607,8 @@ impl Stages {
 }
 
 /// Registration (IV-D, Fig. 3 "register") for the manifold method: the estimated `base_T_hole`
-/// from the observations, starting from the believed hole, and its wall time, s. None for the
+/// and its uncertainty, from the observations, starting from the believed hole, and its wall
+/// time, s. None for the
 /// direct baseline, or when too few observations were recorded for an observation normal. The
 /// restarts draw from the trial's registration stream.
 fn estimate_hole(
@@ -604,7 +617,7 @@ fn estimate_hole(
     believed: &Iso,
     config: &TrialConfig,
     seeds: &TrialSeeds,
-) -> Result<(Option<Pose6>, f64)> {
+) -> Result<(Option<Registration>, f64)> {
     if config.method != Method::Manifold {
         return Ok((None, 0.0));
     }
@@ -620,7 +633,7 @@ fn estimate_hole(
         ..config.registration.clone()
     };
     let reg = register(manifold, observations, &init, &registration)?;
-    Ok((Some(reg.estimate), t0.elapsed().as_secs_f64()))
+    Ok((Some(reg), t0.elapsed().as_secs_f64()))
 }
 
 /// Every `FZ_PROFILE_DT_S` of a per-step |Fz| series, rounded to 0.01 N.

@@ -6,13 +6,17 @@
 //!   2.5 deg are drawn red as in the paper (Fig. 5);
 //! - `fig6_fz`: |Fz| during insertion, mean +- 1 std, for successes and failures of each method
 //!   (Fig. 6);
+//! - `fig7_coverage`: the estimate's error over its estimated standard deviation, per axis,
+//!   beside the standard normal (issue "know when you know"), with the coverage table;
 //! - with several clearances, `fig5_errors-{c}mm` and `fig6_fz-{c}mm` for each clearance beside
 //!   the pooled ones (the paper pools its 0.1-1.0 mm parts).
 
 mod charts;
+mod coverage;
 mod page;
 
 use charts::{FigureTally, draw_errors, draw_fz, draw_success, draw_tune, render, success_series};
+use coverage::{CoverageTally, draw_coverage};
 pub(crate) use page::escape;
 use page::html;
 
@@ -55,9 +59,13 @@ pub fn write_campaign_report(
 pub fn write_all(dir: &Path, scenario: &Scenario, source: &dyn RecordSource) -> Result<Summary> {
     let mut cells = SummaryTally::new(scenario);
     let mut figures = FigureTally::per_clearance(scenario);
+    let mut coverage = CoverageTally::default();
     two_passes(source, &mut |r, pass| {
         cells.add(r, pass);
         figures.iter_mut().for_each(|f| f.add(r, pass));
+        if pass == super::summary::Pass::Mean {
+            coverage.add(r);
+        }
     })?;
     let summary = cells.finish(scenario);
     let write = crate::files::write_atomically;
@@ -69,16 +77,17 @@ pub fn write_all(dir: &Path, scenario: &Scenario, source: &dyn RecordSource) -> 
         &dir.join("summary.csv"),
         &super::summary::summary_csv(&summary),
     )?;
-    write_report(dir, scenario, &summary, &figures)?;
+    write_report(dir, scenario, &summary, &figures, &coverage)?;
     Ok(summary)
 }
 
-/// Draws the three figures into `dir/figures` and writes `dir/report.html`.
+/// Draws the figures into `dir/figures` and writes `dir/report.html`.
 fn write_report(
     dir: &Path,
     scenario: &Scenario,
     summary: &Summary,
     figures: &[FigureTally],
+    coverage: &CoverageTally,
 ) -> Result<()> {
     let mut geometries: Vec<String> = Vec::new();
     for c in &summary.cells {
@@ -108,10 +117,25 @@ fn write_report(
             |a| draw_fz(a, tally),
         )?;
     }
+    if !coverage.is_empty() {
+        render(
+            dir,
+            "fig7_coverage",
+            |a| draw_coverage(a, coverage),
+            |a| draw_coverage(a, coverage),
+        )?;
+    }
     let replays = replays::list(dir)?;
     let manifolds = manifold_figures(dir)?;
     let clearances: Vec<f64> = figures.iter().filter_map(|f| f.clearance_mm).collect();
-    let page = html(scenario, summary, &replays, &manifolds, &clearances);
+    let page = html(
+        scenario,
+        summary,
+        &replays,
+        &manifolds,
+        &clearances,
+        !coverage.is_empty(),
+    );
     crate::files::write_atomically(&dir.join("report.html"), page.as_bytes())
 }
 

@@ -20,11 +20,12 @@ pub(super) fn html(
     replay_links: &[ReplayLink],
     manifolds: &[String],
     clearances_mm: &[f64],
+    coverage_figure: bool,
 ) -> String {
     let rows = table_rows(summary, replay_links);
     let axes: String = AXES.iter().map(|a| format!("<th>MAE {a}</th>")).collect();
     format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n{pp}<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th><th>partial to full insertion s (successes)</th><th title=\"failures that inserted: the jam break fired / the seat break fired above the floor / the target ran out with the peg held short of it\">failures jam / stall / wedge</th><th>replays</th></tr>\n{rows}</table>\n{figures}{rp}</body></html>\n",
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>pegtwin: {name}</title>\n<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:3px 7px;text-align:right}}</style></head><body>\n<h1>pegtwin campaign: {name}</h1>\n<p>Scenario fingerprint {fp}; {n} trials per cell; hole offsets U(-{om}, {om}) mm and U(-{od}, {od}) deg; success when the final depth is within {sm} mm of the floor.</p>\n{pp}<table><tr><th>geometry</th><th>clearance mm</th><th>method</th><th>t_obs s</th><th>success</th><th>95 % CI</th>{axes}<th>peak Fz success N</th><th>peak Fz failure N</th><th>partial to full insertion s (successes)</th><th title=\"failures that inserted: the jam break fired / the seat break fired above the floor / the target ran out with the peg held short of it\">failures jam / stall / wedge</th><th>replays</th></tr>\n{rows}</table>\n{coverage}{figures}{rp}</body></html>\n",
         name = escape(&scenario.name),
         fp = summary.fingerprint,
         n = scenario.trials,
@@ -32,7 +33,8 @@ pub(super) fn html(
         od = scenario.offset_deg,
         sm = scenario.success_mm,
         pp = pair_physics_html(scenario),
-        figures = figures_html(manifolds, clearances_mm),
+        coverage = super::coverage::coverage_html(summary),
+        figures = figures_html(manifolds, clearances_mm, coverage_figure),
         rp = replays::section(replay_links, &scenario.cells()),
     )
 }
@@ -96,8 +98,13 @@ pub(super) fn pair_physics_html(scenario: &Scenario) -> String {
     )
 }
 
-/// The paper's figures pooled, per clearance, and the reference manifolds'.
-pub(super) fn figures_html(manifolds: &[String], clearances_mm: &[f64]) -> String {
+/// The paper's figures pooled, per clearance, the estimate's coverage (when the campaign has
+/// estimates) and the reference manifolds'.
+pub(super) fn figures_html(
+    manifolds: &[String],
+    clearances_mm: &[f64],
+    coverage_figure: bool,
+) -> String {
     let figure = |name: &str, caption: &str| {
         format!(
             "<figure><img src=\"figures/{name}.png\" alt=\"{caption}\" width=\"960\"><figcaption>{caption} (<a href=\"figures/{name}.svg\">SVG</a>)</figcaption></figure>\n"
@@ -123,6 +130,12 @@ pub(super) fn figures_html(manifolds: &[String], clearances_mm: &[f64]) -> Strin
         out += &figure(
             &format!("fig6_fz-{c}mm"),
             &format!("|Fz| profiles during insertion at {c} mm (Fig. 6)"),
+        );
+    }
+    if coverage_figure {
+        out += &figure(
+            "fig7_coverage",
+            "The estimate's error over its estimated standard deviation, per axis",
         );
     }
     for name in manifolds {

@@ -24,6 +24,7 @@
 pub mod algorithm1;
 pub mod correspondence;
 pub mod least_squares;
+pub mod uncertainty;
 
 use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
@@ -193,6 +194,10 @@ pub struct RestartResult {
     pub residual_mm: f64,
     /// Whether the MAD test rejected it.
     pub rejected: bool,
+    /// The covariance of its optimum, m and rad ([`uncertainty::run_covariance`]); not written
+    /// out.
+    #[serde(skip)]
+    pub covariance: [[f64; 6]; 6],
 }
 
 /// Wall time per stage, seconds.
@@ -212,6 +217,14 @@ pub struct Registration {
     pub restarts: Vec<RestartResult>,
     /// Restarts kept by the MAD test.
     pub kept: usize,
+    /// The covariance of the estimate's error in the estimated hole frame (x, y, z m; roll,
+    /// pitch, yaw rad), row by row: the kept restarts' covariance and their spread, scaled by
+    /// the measured [`uncertainty::AXIS_SCALE`] (docs/registration.md, "Uncertainty").
+    #[serde(default)]
+    pub covariance: [[f64; 6]; 6],
+    /// The standard deviation of each axis of `covariance` (m, rad).
+    #[serde(default)]
+    pub estimate_std: [f64; 6],
     pub time: StageTimes,
 }
 
@@ -237,11 +250,14 @@ pub fn register(
         .collect();
     let t1 = Instant::now();
     let estimate = combine_restarts(&mut restarts, &manifold.meta.metric, cfg.mad_threshold);
+    let covariance = uncertainty::estimate_covariance(&estimate, &restarts);
     let t2 = Instant::now();
     Ok(Registration {
         estimate: Pose6::from_iso(&estimate),
         solver: cfg.solver,
         kept: restarts.iter().filter(|r| !r.rejected).count(),
+        covariance,
+        estimate_std: uncertainty::axis_std(&covariance),
         restarts,
         time: StageTimes {
             restarts_s: (t1 - t0).as_secs_f64(),
@@ -383,6 +399,7 @@ pub fn run_from(
         }
         Solver::LeastSquares => run_least_squares(manifold, observations, start, cfg),
     };
+    let factors = manifold.meta.metric.factors();
     RestartResult {
         initial: Pose6::from_iso(&start),
         estimate: Pose6::from_iso(&state.estimate),
@@ -390,6 +407,7 @@ pub fn run_from(
         residual_mm: rms_residual(&state.cs),
         step_mm,
         rejected: false,
+        covariance: uncertainty::run_covariance(&state.cs, &factors, cfg.huber_k),
     }
 }
 
@@ -455,6 +473,7 @@ mod tests {
             step_mm: vec![],
             residual_mm: 0.0,
             rejected: false,
+            covariance: [[0.0; 6]; 6],
         };
         let mut rs: Vec<RestartResult> = (0..7)
             .map(|i| {
