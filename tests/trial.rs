@@ -222,3 +222,61 @@ fn an_aligned_insertion_seats_on_the_floor_with_the_seat_force() {
         r.peak_fz_n
     );
 }
+
+/// The adaptive method stops observing at its first registration when its limits are loose,
+/// and observes its whole budget when they cannot be met; either way it inserts along its last
+/// estimate, and its record holds the cell's `t_obs_s` and the time it observed. Observing its
+/// whole budget, it records the contacts the manifold method records with that budget.
+#[test]
+fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
+    use pegtwin::method::config::AdaptiveConfig;
+    let dir = tempfile::tempdir().unwrap();
+    let m = pegtwin::method::manifold::file::load(&small_manifold(dir.path(), 0.5e-3)).unwrap();
+    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
+    let params = WorkCellParams::default();
+    let run = |config: &TrialConfig| {
+        run_trial(&cross(0.5e-3), &robot, &params, config, Some(&m), 5, None).unwrap()
+    };
+    let adaptive = |limit: f64| TrialConfig {
+        method: Method::Adaptive,
+        t_obs_s: 5.0,
+        adaptive: AdaptiveConfig {
+            check_from_s: 2.0,
+            check_every_s: 1.0,
+            max_std_xy_m: Some(limit),
+            max_std_tilt_rad: Some(limit),
+            max_std_yaw_rad: Some(limit),
+        },
+        ..TrialConfig::default()
+    };
+    let loose = run(&adaptive(1.0));
+    assert_eq!((loose.observation_s, loose.t_obs_s), (Some(2.0), 5.0));
+    assert_eq!(loose.method, Method::Adaptive);
+    assert!(
+        (loose.times.observe_s - 2.0).abs() < 2e-3,
+        "{:?}",
+        loose.times
+    );
+    assert!(loose.estimate.is_some() && loose.final_depth_mm.is_some());
+
+    let strict = run(&adaptive(1e-12));
+    assert_eq!(strict.observation_s, Some(5.0));
+    let manifold = run(&TrialConfig {
+        t_obs_s: 5.0,
+        ..TrialConfig::default()
+    });
+    assert_eq!(manifold.observation_s, None);
+    assert_eq!(strict.contact_observations, manifold.contact_observations);
+    assert!(loose.contact_observations < strict.contact_observations);
+
+    // A limit that is not positive is refused, by name.
+    let bad = TrialConfig {
+        adaptive: AdaptiveConfig {
+            check_every_s: 0.0,
+            ..AdaptiveConfig::default()
+        },
+        ..adaptive(1.0)
+    };
+    let err = run_trial(&cross(0.5e-3), &robot, &params, &bad, Some(&m), 5, None).unwrap_err();
+    assert!(err.to_string().contains("check_every_s"), "{err}");
+}

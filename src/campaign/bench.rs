@@ -391,7 +391,7 @@ fn one_manifold_cell_per_pair(scenario: &Scenario) -> Vec<usize> {
         .filter(|&c| {
             let cell = &cells[c];
             let pair = (cell.geometry.clone(), cell.clearance_mm.to_bits());
-            let first = cell.method == Method::Manifold && !seen.contains(&pair);
+            let first = cell.method.registers() && !seen.contains(&pair);
             if first {
                 seen.push(pair);
             }

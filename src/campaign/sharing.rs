@@ -10,6 +10,7 @@
 
 use crate::campaign::records::TrialSpec;
 use crate::campaign::scenario::PlannedCell;
+use crate::method::config::Method;
 use std::collections::HashMap;
 
 /// `trials`, in their order, gathered into the pieces of work a campaign runs: each piece is
@@ -29,7 +30,9 @@ pub fn share_observations(plan: &[PlannedCell], trials: &[TrialSpec]) -> Vec<Vec
     let mut pieces: Vec<Vec<TrialSpec>> = Vec::with_capacity(trials.len());
     let mut by_seed: HashMap<u64, Vec<usize>> = HashMap::new();
     for spec in trials {
-        if plan[spec.cell].config.ensure_valid().is_ok() {
+        let config = &plan[spec.cell].config;
+        // The adaptive method decides while observing when to stop: it observes alone.
+        if config.ensure_valid().is_ok() && config.method != Method::Adaptive {
             let open = by_seed.entry(spec.seed).or_default();
             if let Some(&piece) = open.iter().find(|&&p| alike(&pieces[p][0], spec)) {
                 pieces[piece].push(*spec);

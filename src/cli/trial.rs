@@ -210,6 +210,9 @@ fn print_result(r: &TrialResult) {
             e.x_mm, e.y_mm, e.z_mm, e.roll_deg, e.pitch_deg, e.yaw_deg
         );
     }
+    if let Some(t) = r.observation_s {
+        println!("observed {t} s of at most {} s (adaptive)", r.t_obs_s);
+    }
     if let Some(std) = r.estimate_std {
         let s = pegtwin::pose::Pose6(std).to_mm_deg();
         println!(

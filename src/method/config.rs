@@ -16,6 +16,17 @@ pub enum Method {
     Manifold,
     /// The paper's baseline: observe, then insert along the peg's z with no estimate.
     Direct,
+    /// The manifold method whose observation stops itself: it registers as observations come in
+    /// and stops once the estimate's insertion-critical uncertainties are small enough
+    /// ([`AdaptiveConfig`], `method::adaptive`), or at `t_obs_s`.
+    Adaptive,
+}
+
+impl Method {
+    /// Whether the method registers its observations against a reference manifold.
+    pub fn registers(self) -> bool {
+        matches!(self, Method::Manifold | Method::Adaptive)
+    }
 }
 
 /// How a trial starts.
@@ -41,6 +52,12 @@ impl Choice for Method {
             name: "direct",
             value: Method::Direct,
             help: "the paper's baseline: observe, then insert along the peg's z with no estimate",
+        },
+        Named {
+            name: "adaptive",
+            value: Method::Adaptive,
+            help: "the manifold method, observing until the estimate is certain enough to insert \
+                   (at most t_obs)",
         },
     ];
 }
@@ -128,6 +145,78 @@ pub struct TrialConfig {
     /// Success when the final tip depth is within this of the floor, m (paper: 2 mm).
     pub success_eps_m: f64,
     pub registration: RegistrationConfig,
+    /// When the adaptive method registers and when it stops (`t_obs_s` is its longest
+    /// observation).
+    #[serde(default)]
+    pub adaptive: AdaptiveConfig,
+}
+
+/// The adaptive method's observation (issue "know when you know"; docs/method.md, "Observation
+/// that stops itself"): it registers the observations so far every `check_every_s` from
+/// `check_from_s` on, each registration starting from the previous estimate, and stops when every
+/// standard deviation of the estimate is within its limit. The limits default to what the
+/// insertion tolerates (`method::adaptive::StopRule`); each can be set here instead.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AdaptiveConfig {
+    /// The first registration, s after the observation starts.
+    pub check_from_s: f64,
+    /// Time between registrations, s.
+    pub check_every_s: f64,
+    /// Largest standard deviation of x and y to stop at, m (default: from the clearance and the
+    /// chamfers).
+    pub max_std_xy_m: Option<f64>,
+    /// Largest standard deviation of roll and pitch to stop at, rad (default: from the paper's
+    /// critical orientation error).
+    pub max_std_tilt_rad: Option<f64>,
+    /// Largest standard deviation of yaw to stop at, rad (default: from the clearance, the
+    /// chamfers and the peg's size).
+    pub max_std_yaw_rad: Option<f64>,
+}
+
+impl Default for AdaptiveConfig {
+    fn default() -> Self {
+        AdaptiveConfig {
+            check_from_s: 4.0,
+            check_every_s: 1.0,
+            max_std_xy_m: None,
+            max_std_tilt_rad: None,
+            max_std_yaw_rad: None,
+        }
+    }
+}
+
+impl AdaptiveConfig {
+    /// Rejects values the adaptive observation cannot run with, naming the field.
+    pub fn ensure_valid(&self, t_obs_max_s: f64) -> Result<()> {
+        if !(is_positive(self.check_from_s) && self.check_from_s <= t_obs_max_s) {
+            return Err(Error::Input(format!(
+                "adaptive check_from_s {} s: expected more than 0 and at most the longest \
+                 observation, {t_obs_max_s} s",
+                self.check_from_s
+            )));
+        }
+        if !(is_positive(self.check_every_s) && self.check_every_s <= MAX_T_OBS_S) {
+            return Err(Error::Input(format!(
+                "adaptive check_every_s {} s: expected more than 0 and at most {MAX_T_OBS_S} s",
+                self.check_every_s
+            )));
+        }
+        for (field, v) in [
+            ("max_std_xy_m", self.max_std_xy_m),
+            ("max_std_tilt_rad", self.max_std_tilt_rad),
+            ("max_std_yaw_rad", self.max_std_yaw_rad),
+        ] {
+            if let Some(v) = v
+                && !is_positive(v)
+            {
+                return Err(Error::Input(format!(
+                    "adaptive {field} {v}: expected a positive limit"
+                )));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for TrialConfig {
@@ -168,6 +257,7 @@ impl Default for TrialConfig {
             insert_seat_window_m: 8e-3,
             success_eps_m: 2e-3,
             registration: RegistrationConfig::default(),
+            adaptive: AdaptiveConfig::default(),
         }
     }
 }
@@ -184,7 +274,7 @@ impl TrialConfig {
             ..TrialConfig::default()
         };
         match method {
-            Method::Manifold => base,
+            Method::Manifold | Method::Adaptive => base,
             Method::Direct => TrialConfig {
                 insert_gains: ImpedanceGains {
                     stiffness: [3955.0, 3955.0, 3631.0, 11.0, 11.0, 11.0],
@@ -221,6 +311,7 @@ impl TrialConfig {
             insert_seat_window_m: self.insert_seat_window_m,
             success_eps_m: self.success_eps_m,
             registration: self.registration.clone(),
+            adaptive: self.adaptive.clone(),
             ..other.clone()
         };
         later == *self
@@ -319,6 +410,9 @@ impl TrialConfig {
         self.observe_gains.ensure_valid()?;
         self.align_gains.ensure_valid()?;
         self.insert_gains.ensure_valid()?;
+        if self.method == Method::Adaptive {
+            self.adaptive.ensure_valid(self.t_obs_s)?;
+        }
         self.registration.ensure_valid()
     }
 }

@@ -108,9 +108,9 @@ impl TrialRequest {
         let mut params = WorkCellParams::default().placed_for(&spec);
         params.cell.profile = self.profile;
         let pair = params.cell.printed(self.seed, pair)?;
-        let manifold = match self.method {
-            Method::Manifold => Some(self.reference_manifold(&pair, &robot, &params, progress)?),
-            Method::Direct => None,
+        let manifold = match self.method.registers() {
+            true => Some(self.reference_manifold(&pair, &robot, &params, progress)?),
+            false => None,
         };
         Ok(PreparedTrial {
             pair,

@@ -12,6 +12,7 @@
 //! never reaches a stage.
 
 use crate::error::{Error, Result};
+use crate::method::adaptive::StopRule;
 use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::insert::{InsertEnd, Insertion, insert};
 use crate::method::manifold::Manifold;
@@ -45,9 +46,39 @@ pub fn run_trial(
     seed: u64,
     mut recorder: Option<&mut dyn Recorder>,
 ) -> Result<TrialResult> {
+    if config.method == Method::Adaptive {
+        return run_adaptive_trial(pair, robot, params, config, manifold, seed, recorder);
+    }
     let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
     let observed = observe_trial(pair, robot, params, config, seed, looking)?;
     finish_trial(observed, pair, config, manifold, recorder)
+}
+
+/// A trial of the adaptive method: it observes until its estimate is certain enough to insert
+/// ([`ObservingTrial::observe_adaptively`]) or for `t_obs_s`, then inserts along the last
+/// estimate. Its record holds the cell's `t_obs_s` and the time it observed, `observation_s`.
+fn run_adaptive_trial(
+    pair: &PartPair,
+    robot: &RobotModel,
+    params: &WorkCellParams,
+    config: &TrialConfig,
+    manifold: Option<&Manifold>,
+    seed: u64,
+    mut recorder: Option<&mut dyn Recorder>,
+) -> Result<TrialResult> {
+    let manifold = manifold
+        .ok_or_else(|| Error::Input("the adaptive method needs a reference manifold".into()))?;
+    let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
+    let mut observing = ObservingTrial::start(pair, robot, params, config, seed, looking)?;
+    let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
+    let registration = observing.observe_adaptively(pair, manifold, looking)?;
+    let observed = observing.into_observed_at_budget();
+    let at_stop = observed.config.clone();
+    let estimator = Estimator::Given(registration.map(Box::new));
+    let mut result = finish(observed, pair, &at_stop, estimator, recorder)?;
+    result.observation_s = Some(at_stop.t_obs_s);
+    result.t_obs_s = config.t_obs_s;
+    Ok(result)
 }
 
 /// A trial up to the end of its observation (Fig. 3 "observe"): the cell as the observation
@@ -184,6 +215,51 @@ impl ObservingTrial {
         }
     }
 
+    /// The observation of the adaptive method (docs/method.md, "Observation that stops itself"):
+    /// from `check_from_s` on and every `check_every_s`, it registers the observations so far,
+    /// starting from the last estimate (the believed hole at first), and stops as soon as the
+    /// estimate's standard deviations meet [`StopRule`], or at the longest budget (`t_obs_s`).
+    /// Returns the registration of the observation it stopped with (none when too few contacts
+    /// were recorded to register, or when the trial stopped before observing) and its wall time.
+    pub fn observe_adaptively(
+        &mut self,
+        pair: &PartPair,
+        manifold: &Manifold,
+        mut recorder: Option<&mut dyn Recorder>,
+    ) -> Result<Option<(Registration, f64)>> {
+        let config = self.trial.config.clone();
+        let rule = StopRule::for_pair(pair, &config.adaptive);
+        let mut t = config.adaptive.check_from_s.min(config.t_obs_s);
+        let mut last: Option<(Registration, f64)> = None;
+        loop {
+            self.observe_until(t, recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder));
+            let Some(believed) = self.trial.believed else {
+                return Ok(None);
+            };
+            let init = last.as_ref().map_or(believed, |(r, _)| r.estimate.to_iso());
+            let observations = self.observation().downsampled(config.observations);
+            let seeds = &self.trial.setup.seeds;
+            last = match estimate_hole(Some(manifold), &observations, &init, &config, seeds)? {
+                (Some(registration), wall_s) => Some((registration, wall_s)),
+                (None, _) => None,
+            };
+            let certain = (last.as_ref()).is_some_and(|(r, _)| rule.met(&r.estimate_std));
+            if certain || t >= config.t_obs_s || self.trial.fault.is_some() {
+                return Ok(last);
+            }
+            t = (t + config.adaptive.check_every_s).min(config.t_obs_s);
+        }
+    }
+
+    /// The trial at the end of its observation, under its configuration with the budget it
+    /// observed to (an adaptive trial's stop).
+    pub fn into_observed_at_budget(self) -> ObservedTrial {
+        let budget_s = self.budget_s;
+        let mut observed = self.into_observed();
+        observed.config.t_obs_s = budget_s;
+        observed
+    }
+
     /// The trial at the end of its observation.
     pub fn into_observed(self) -> ObservedTrial {
         let observation = self.observation();
@@ -209,6 +285,32 @@ pub fn finish_trial(
     pair: &PartPair,
     config: &TrialConfig,
     manifold: Option<&Manifold>,
+    recorder: Option<&mut dyn Recorder>,
+) -> Result<TrialResult> {
+    finish(
+        observed,
+        pair,
+        config,
+        Estimator::Register(manifold),
+        recorder,
+    )
+}
+
+/// Where the estimate a trial inserts along comes from.
+enum Estimator<'a> {
+    /// The registration of its observation against this manifold (the manifold method; none:
+    /// the direct baseline, which has no estimate).
+    Register(Option<&'a Manifold>),
+    /// A registration made while observing (the adaptive method), with its wall time, s.
+    Given(Option<Box<(Registration, f64)>>),
+}
+
+/// [`finish_trial`] with the estimate from `estimator`.
+fn finish(
+    observed: ObservedTrial,
+    pair: &PartPair,
+    config: &TrialConfig,
+    estimator: Estimator<'_>,
     recorder: Option<&mut dyn Recorder>,
 ) -> Result<TrialResult> {
     config.ensure_valid()?;
@@ -237,8 +339,12 @@ pub fn finish_trial(
     let mut session = Session::resume(&mut cell, recorder, fault, Phase::Observe);
     let mut stages = Stages::new(search_s, observation, observations.len(), session.dt_s());
     if session.fault().is_none() {
-        (stages.estimate, stages.register_wall_s) =
-            estimate_hole(manifold, &observations, &believed, config, &setup.seeds)?;
+        (stages.estimate, stages.register_wall_s) = match estimator {
+            Estimator::Register(manifold) => {
+                estimate_hole(manifold, &observations, &believed, config, &setup.seeds)?
+            }
+            Estimator::Given(given) => given.map_or((None, 0.0), |g| (Some(g.0), g.1)),
+        };
         let estimate = stages.estimate.as_ref().map(|r| &r.estimate);
         session.record_registration(&observations, &believed, estimate);
         stages.insertion = insert(
@@ -313,6 +419,10 @@ pub struct TrialResult {
     /// checks missed, recorded so that a campaign goes on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error_message: Option<String>,
+    /// How long the adaptive method observed before it stopped, s (`t_obs_s` is its longest);
+    /// absent for the other methods, which observe for `t_obs_s`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub observation_s: Option<f64>,
     /// Estimated `base_T_hole` (m, rad), manifold method only.
     pub estimate: Option<[f64; 6]>,
     /// The standard deviation of the estimate's error per axis, in the estimated hole frame
@@ -470,6 +580,7 @@ impl Setup {
             success: false,
             fault,
             error_message: None,
+            observation_s: None,
             estimate: None,
             estimate_std: None,
             estimate_covariance: None,
@@ -607,18 +718,18 @@ impl Stages {
 }
 
 /// Registration (IV-D, Fig. 3 "register") for the manifold method: the estimated `base_T_hole`
-/// and its uncertainty, from the observations, starting from the believed hole, and its wall
-/// time, s. None for the
+/// and its uncertainty, from the observations, starting from `init` (the believed hole), and
+/// its wall time, s. None for the
 /// direct baseline, or when too few observations were recorded for an observation normal. The
 /// restarts draw from the trial's registration stream.
 fn estimate_hole(
     manifold: Option<&Manifold>,
     observations: &[Pose6],
-    believed: &Iso,
+    init: &Iso,
     config: &TrialConfig,
     seeds: &TrialSeeds,
 ) -> Result<(Option<Registration>, f64)> {
-    if config.method != Method::Manifold {
+    if !config.method.registers() {
         return Ok((None, 0.0));
     }
     let manifold = manifold
@@ -627,7 +738,7 @@ fn estimate_hole(
         return Ok((None, 0.0));
     }
     let t0 = Instant::now();
-    let init = Pose6::from_iso(believed);
+    let init = Pose6::from_iso(init);
     let registration = RegistrationConfig {
         seed: seeds.registration(config.registration.seed),
         ..config.registration.clone()

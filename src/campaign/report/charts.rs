@@ -111,6 +111,7 @@ pub(super) fn success_series(summary: &Summary, geometries: &[String]) -> Vec<Ba
             let label = match method {
                 Method::Manifold => format!("manifold, t_obs {t} s"),
                 Method::Direct => format!("direct, t_obs {t} s"),
+                Method::Adaptive => format!("adaptive, t_obs <= {t} s"),
             };
             let values = geometries
                 .iter()
@@ -300,7 +301,7 @@ impl FigureTally {
             return;
         }
         if let (Pass::Mean, Some(e)) = (pass, abs_errors(r))
-            && res.method == Method::Manifold
+            && res.method.registers()
         {
             self.position.add(e[0].max(e[1]), res.success);
             self.orientation.add(e[3].max(e[4]).max(e[5]), res.success);

@@ -27,7 +27,6 @@ use crate::campaign::scenario::Scenario;
 use crate::campaign::tune::Evaluation;
 use crate::error::Result;
 
-use crate::method::config::Method;
 use crate::method::manifold::{cache, plot};
 
 use std::path::Path;
@@ -149,7 +148,7 @@ pub fn write_manifolds(dir: &Path, scenario: &Scenario, cache_dir: &Path) -> Res
     let mut drawn = Vec::new();
     for cell in scenario.cells() {
         let key = (cell.geometry.clone(), cell.clearance_mm.to_bits());
-        if cell.method != Method::Manifold || drawn.contains(&key) {
+        if !cell.method.registers() || drawn.contains(&key) {
             continue;
         }
         drawn.push(key);

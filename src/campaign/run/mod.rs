@@ -31,7 +31,7 @@ use crate::campaign::replays::{ReplayWriter, Replays};
 use crate::campaign::scenario::{Condition, PlannedCell, Scenario};
 use crate::campaign::sharing::share_observations;
 use crate::error::{Error, Result};
-use crate::method::config::{Method, Start, TrialConfig};
+use crate::method::config::{Start, TrialConfig};
 use crate::method::manifold::Manifold;
 use crate::method::manifold::cache::{self, BuildProgress, Wanted};
 use crate::method::session::Recorder;
@@ -158,7 +158,7 @@ pub fn prepare(scenario: &Scenario, cells: &[usize], options: &RunOptions) -> Re
             pairs.insert(key.clone(), scenario.pair(cell)?);
             robots.insert(key.clone(), scenario.robot(cell).load()?.0);
         }
-        if cell.method == Method::Manifold && !registering.iter().any(|(k, _)| *k == key) {
+        if cell.method.registers() && !registering.iter().any(|(k, _)| *k == key) {
             registering.push((key, scenario.work_cell_params_for(cell)));
         }
     }

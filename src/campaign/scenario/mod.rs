@@ -11,7 +11,8 @@
 mod overrides;
 
 pub use overrides::{
-    DirectOverride, GainsOverride, InsertionOverride, PairPhysics, PhaseGains, PhysicsOverride,
+    AdaptiveOverride, DirectOverride, GainsOverride, InsertionOverride, PairPhysics, PhaseGains,
+    PhysicsOverride,
 };
 
 use crate::choice::Choice;
@@ -63,7 +64,7 @@ pub struct Scenario {
     pub assembly_dir: PathBuf,
     /// Observation times of the manifold method, s.
     pub t_obs_s: Vec<f64>,
-    /// Methods to run: "manifold" and/or "direct".
+    /// Methods to run: "manifold", "direct" and/or "adaptive".
     pub methods: Vec<Method>,
     /// Observation time of the direct baseline, s (the paper: 10 s).
     #[serde(default = "default_direct_t_obs")]
@@ -108,6 +109,9 @@ pub struct Scenario {
     /// baseline's impedance for success, V-B; `pegtwin tune --target direct` searches them).
     #[serde(default, skip_serializing_if = "DirectOverride::is_default")]
     pub direct: DirectOverride,
+    /// The adaptive method's longest observation, when it registers and when it stops.
+    #[serde(default, skip_serializing_if = "AdaptiveOverride::is_default")]
+    pub adaptive: AdaptiveOverride,
 }
 
 fn default_seed() -> u64 {
@@ -290,7 +294,11 @@ impl Scenario {
                 .map_err(|e| Error::Input(format!("clearances_mm: {e}")))?;
         }
         if self.methods.is_empty() {
-            return bad("methods", "[]".into(), "\"manifold\" and/or \"direct\"");
+            return bad(
+                "methods",
+                "[]".into(),
+                "\"manifold\", \"direct\" and/or \"adaptive\"",
+            );
         }
         if self.methods.contains(&Method::Manifold) && self.t_obs_s.is_empty() {
             return bad("t_obs_s", "[]".into(), "at least one observation time");
@@ -326,6 +334,7 @@ impl Scenario {
         self.ensure_gains_valid()?;
         self.insertion.ensure_valid("insertion")?;
         self.direct.insertion.ensure_valid("direct.insertion")?;
+        self.adaptive.ensure_valid()?;
         self.work_cell_params().ensure_valid()?;
         self.ensure_pair_physics_valid()?;
         for cell in self.cells() {
@@ -447,7 +456,7 @@ impl Scenario {
 
     /// The cells in their fixed order: geometry, clearance (each built-in at every clearance,
     /// then each assembly at its measured one), then the manifold method at each t_obs, then
-    /// the direct baseline.
+    /// the direct baseline, then the adaptive method (at its longest observation).
     pub fn cells(&self) -> Vec<Condition> {
         let builtins = self
             .geometries
@@ -459,13 +468,14 @@ impl Scenario {
             .map(|a| (a.pair.name.clone(), a.pair.clearance_mm()));
         let mut cells = Vec::new();
         for (geometry, clearance_mm) in builtins.chain(assemblies) {
-            for &method in &[Method::Manifold, Method::Direct] {
+            for &method in &[Method::Manifold, Method::Direct, Method::Adaptive] {
                 if !self.methods.contains(&method) {
                     continue;
                 }
                 let times = match method {
                     Method::Manifold => self.t_obs_s.clone(),
                     Method::Direct => vec![self.direct_t_obs_s],
+                    Method::Adaptive => vec![self.adaptive.t_obs_max_s()],
                 };
                 for t in times {
                     cells.push(Condition {
@@ -498,6 +508,9 @@ impl Scenario {
             ..d
         };
         self.insertion.apply(&mut c);
+        if cell.method == Method::Adaptive {
+            self.adaptive.apply(&mut c);
+        }
         if cell.method == Method::Direct {
             let g = &self.direct.gains;
             c.observe_gains = g.observe.apply(&c.observe_gains);
@@ -547,6 +560,41 @@ clearances_mm = [0.5]
 t_obs_s = [6.0, 10.0]
 methods = ["manifold", "direct"]
 "#;
+
+    #[test]
+    fn the_adaptive_method_runs_at_its_longest_observation_with_its_own_settings() {
+        let text = MINIMAL.replace(
+            r#"methods = ["manifold", "direct"]"#,
+            r#"methods = ["manifold", "adaptive"]"#,
+        );
+        let s = Scenario::parse(&text).unwrap();
+        let cells = s.cells();
+        assert_eq!(cells.len(), 3);
+        assert_eq!(
+            (cells[2].method, cells[2].t_obs_s),
+            (Method::Adaptive, 10.0)
+        );
+        let set = format!(
+            "{text}\n[adaptive]\nt_obs_max_s = 8.0\ncheck_from_s = 3.0\nmax_std_xy_mm = 0.2\n"
+        );
+        let s = Scenario::parse(&set).unwrap();
+        let cell = &s.cells()[2];
+        assert_eq!(cell.t_obs_s, 8.0);
+        let a = s.trial_config(cell).adaptive;
+        assert_eq!((a.check_from_s, a.max_std_xy_m), (3.0, Some(2e-4)));
+        assert_eq!(a.max_std_yaw_rad, None);
+        // The manifold method's cells keep their settings.
+        assert_eq!(s.trial_config(&s.cells()[0]).adaptive.check_from_s, 4.0);
+        for (bad, field) in [
+            ("max_std_xy_mm = 0.0", "adaptive.max_std_xy_mm"),
+            ("check_from_s = 12.0", "adaptive.check_from_s"),
+            ("t_obs_max_s = 700.0", "adaptive.t_obs_max_s"),
+            ("check_every_s = -1.0", "adaptive.check_every_s"),
+        ] {
+            let err = Scenario::parse(&format!("{text}\n[adaptive]\n{bad}\n")).unwrap_err();
+            assert!(err.to_string().contains(field), "{bad}: {err}");
+        }
+    }
 
     #[test]
     fn minimal_scenario_gives_manifold_then_direct_cells() {

@@ -205,3 +205,71 @@ impl PhysicsOverride {
         }
     }
 }
+
+/// The adaptive method's observation (`methods = ["adaptive"]`, `[adaptive]`); units in the
+/// names. Left out, a limit follows from the pair (`method::adaptive::StopRule`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptiveOverride {
+    /// The longest it observes, s (default [`DEFAULT_T_OBS_MAX_S`]).
+    pub t_obs_max_s: Option<f64>,
+    /// Its first registration, s after the observation starts.
+    pub check_from_s: Option<f64>,
+    /// Time between its registrations, s.
+    pub check_every_s: Option<f64>,
+    /// It stops once the estimate's standard deviation in x and y is at most this, mm...
+    pub max_std_xy_mm: Option<f64>,
+    /// ... in roll and pitch at most this, deg ...
+    pub max_std_tilt_deg: Option<f64>,
+    /// ... and in yaw at most this, deg.
+    pub max_std_yaw_deg: Option<f64>,
+}
+
+/// The adaptive method's longest observation unless set, s: the paper's longest t_obs.
+pub const DEFAULT_T_OBS_MAX_S: f64 = 10.0;
+
+impl AdaptiveOverride {
+    pub(super) fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// The longest the adaptive method observes, s.
+    pub fn t_obs_max_s(&self) -> f64 {
+        self.t_obs_max_s.unwrap_or(DEFAULT_T_OBS_MAX_S)
+    }
+
+    /// `config` with these fields replaced.
+    pub(super) fn apply(&self, config: &mut TrialConfig) {
+        let a = &mut config.adaptive;
+        a.check_from_s = self.check_from_s.unwrap_or(a.check_from_s);
+        a.check_every_s = self.check_every_s.unwrap_or(a.check_every_s);
+        a.max_std_xy_m = self.max_std_xy_mm.map(|v| v * 1e-3).or(a.max_std_xy_m);
+        a.max_std_tilt_rad = (self.max_std_tilt_deg.map(f64::to_radians)).or(a.max_std_tilt_rad);
+        a.max_std_yaw_rad = (self.max_std_yaw_deg.map(f64::to_radians)).or(a.max_std_yaw_rad);
+    }
+
+    /// Refuses a value out of range, naming the field.
+    pub(super) fn ensure_valid(&self) -> Result<()> {
+        let max = crate::method::config::MAX_T_OBS_S;
+        let min = crate::method::config::MIN_T_OBS_S;
+        let t_max = self.t_obs_max_s();
+        let checks = [
+            ("t_obs_max_s", self.t_obs_max_s, min, max),
+            ("check_from_s", self.check_from_s, 0.0, t_max),
+            ("check_every_s", self.check_every_s, 0.0, max),
+            ("max_std_xy_mm", self.max_std_xy_mm, 0.0, 1000.0),
+            ("max_std_tilt_deg", self.max_std_tilt_deg, 0.0, 180.0),
+            ("max_std_yaw_deg", self.max_std_yaw_deg, 0.0, 180.0),
+        ];
+        for (field, v, lo, hi) in checks {
+            let Some(v) = v else { continue };
+            if !(v > 0.0 && v >= lo && v <= hi) {
+                return Err(Error::Input(format!(
+                    "adaptive.{field} = {v:?}: expected a value in ({}, {hi}]",
+                    lo.max(0.0)
+                )));
+            }
+        }
+        Ok(())
+    }
+}
