@@ -8,12 +8,15 @@
 //!   (Fig. 6);
 //! - `fig7_coverage`: the estimate's error over its estimated standard deviation, per axis,
 //!   beside the standard normal (issue "know when you know"), with the coverage table;
+//! - `fig8_time`, when the adaptive method ran: success against mean observation time, each cell
+//!   of the methods that register, per pair and pooled;
 //! - with several clearances, `fig5_errors-{c}mm` and `fig6_fz-{c}mm` for each clearance beside
 //!   the pooled ones (the paper pools its 0.1-1.0 mm parts).
 
 mod charts;
 mod coverage;
 mod page;
+mod timing;
 
 use charts::{FigureTally, draw_errors, draw_fz, draw_success, draw_tune, render, success_series};
 use coverage::{CoverageTally, draw_coverage};
@@ -124,17 +127,23 @@ fn write_report(
             |a| draw_coverage(a, coverage),
         )?;
     }
+    let time_figure = timing::wanted(summary);
+    if time_figure {
+        render(
+            dir,
+            "fig8_time",
+            |a| timing::draw_time(a, summary),
+            |a| timing::draw_time(a, summary),
+        )?;
+    }
     let replays = replays::list(dir)?;
     let manifolds = manifold_figures(dir)?;
     let clearances: Vec<f64> = figures.iter().filter_map(|f| f.clearance_mm).collect();
-    let page = html(
-        scenario,
-        summary,
-        &replays,
-        &manifolds,
-        &clearances,
-        !coverage.is_empty(),
-    );
+    let extra = page::ExtraFigures {
+        coverage: !coverage.is_empty(),
+        time: time_figure,
+    };
+    let page = html(scenario, summary, &replays, &manifolds, &clearances, extra);
     crate::files::write_atomically(&dir.join("report.html"), page.as_bytes())
 }
 

@@ -20,7 +20,7 @@ pub(super) fn html(
     replay_links: &[ReplayLink],
     manifolds: &[String],
     clearances_mm: &[f64],
-    coverage_figure: bool,
+    extra: ExtraFigures,
 ) -> String {
     let rows = table_rows(summary, replay_links);
     let axes: String = AXES.iter().map(|a| format!("<th>MAE {a}</th>")).collect();
@@ -34,7 +34,7 @@ pub(super) fn html(
         sm = scenario.success_mm,
         pp = pair_physics_html(scenario),
         coverage = super::coverage::coverage_html(summary),
-        figures = figures_html(manifolds, clearances_mm, coverage_figure),
+        figures = figures_html(manifolds, clearances_mm, extra),
         rp = replays::section(replay_links, &scenario.cells()),
     )
 }
@@ -98,12 +98,20 @@ pub(super) fn pair_physics_html(scenario: &Scenario) -> String {
     )
 }
 
-/// The paper's figures pooled, per clearance, the estimate's coverage (when the campaign has
-/// estimates) and the reference manifolds'.
+/// The figures a campaign draws only when it has what they show.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ExtraFigures {
+    /// `fig7_coverage`: trials with an estimate and its standard deviations.
+    pub(super) coverage: bool,
+    /// `fig8_time`: cells of the adaptive method.
+    pub(super) time: bool,
+}
+
+/// The paper's figures pooled, per clearance, the extra ones and the reference manifolds'.
 pub(super) fn figures_html(
     manifolds: &[String],
     clearances_mm: &[f64],
-    coverage_figure: bool,
+    extra: ExtraFigures,
 ) -> String {
     let figure = |name: &str, caption: &str| {
         format!(
@@ -132,10 +140,16 @@ pub(super) fn figures_html(
             &format!("|Fz| profiles during insertion at {c} mm (Fig. 6)"),
         );
     }
-    if coverage_figure {
+    if extra.coverage {
         out += &figure(
             "fig7_coverage",
             "The estimate's error over its estimated standard deviation, per axis",
+        );
+    }
+    if extra.time {
+        out += &figure(
+            "fig8_time",
+            "Success against mean observation time: fixed t_obs and adaptive, per pair and pooled",
         );
     }
     for name in manifolds {
