@@ -139,7 +139,8 @@ fn write_report(
     let replays = replays::list(dir)?;
     let manifolds = manifold_figures(dir)?;
     let clearances: Vec<f64> = figures.iter().filter_map(|f| f.clearance_mm).collect();
-    let extra = page::ExtraFigures {
+    let extra = page::Extras {
+        coverage_table: coverage::coverage_html(summary),
         coverage: !coverage.is_empty(),
         time: time_figure,
     };

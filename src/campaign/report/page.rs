@@ -20,7 +20,7 @@ pub(super) fn html(
     replay_links: &[ReplayLink],
     manifolds: &[String],
     clearances_mm: &[f64],
-    extra: ExtraFigures,
+    extra: Extras,
 ) -> String {
     let rows = table_rows(summary, replay_links);
     let axes: String = AXES.iter().map(|a| format!("<th>MAE {a}</th>")).collect();
@@ -33,8 +33,8 @@ pub(super) fn html(
         od = scenario.offset_deg,
         sm = scenario.success_mm,
         pp = pair_physics_html(scenario),
-        coverage = super::coverage::coverage_html(summary),
-        figures = figures_html(manifolds, clearances_mm, extra),
+        coverage = extra.coverage_table,
+        figures = figures_html(manifolds, clearances_mm, &extra),
         rp = replays::section(replay_links, &scenario.cells()),
     )
 }
@@ -98,9 +98,11 @@ pub(super) fn pair_physics_html(scenario: &Scenario) -> String {
     )
 }
 
-/// The figures a campaign draws only when it has what they show.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct ExtraFigures {
+/// What a campaign shows only when it has it.
+#[derive(Clone, Debug)]
+pub(super) struct Extras {
+    /// The coverage table (HTML; empty without estimates and their standard deviations).
+    pub(super) coverage_table: String,
     /// `fig7_coverage`: trials with an estimate and its standard deviations.
     pub(super) coverage: bool,
     /// `fig8_time`: cells of the adaptive method.
@@ -108,11 +110,7 @@ pub(super) struct ExtraFigures {
 }
 
 /// The paper's figures pooled, per clearance, the extra ones and the reference manifolds'.
-pub(super) fn figures_html(
-    manifolds: &[String],
-    clearances_mm: &[f64],
-    extra: ExtraFigures,
-) -> String {
+pub(super) fn figures_html(manifolds: &[String], clearances_mm: &[f64], extra: &Extras) -> String {
     let figure = |name: &str, caption: &str| {
         format!(
             "<figure><img src=\"figures/{name}.png\" alt=\"{caption}\" width=\"960\"><figcaption>{caption} (<a href=\"figures/{name}.svg\">SVG</a>)</figcaption></figure>\n"
