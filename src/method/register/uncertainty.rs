@@ -10,7 +10,7 @@
 //!   Huber-weighted Gauss-Newton normal matrix of the residuals (Section IV-D), `S` the spread of
 //!   their gradient. The textbook `s² H⁻¹` takes the two residuals of each of about a thousand
 //!   observations as independent; observations that follow each other along a primitive's path
-//!   are not, and `s² H⁻¹` covered the true error within 2 sigma in only 34-50 % of trials. `S`
+//!   are not, and `s² H⁻¹` covered the true error within 2 sigma in only 34-52 % of trials. `S`
 //!   is therefore estimated by batch means over [`BATCHES`] runs of consecutive observations, which
 //!   keeps the correlation within a batch.
 //! - Over the restarts ([`estimate_covariance`]): the kept runs' covariances averaged, plus the
