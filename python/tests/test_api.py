@@ -102,7 +102,7 @@ def test_bad_arguments_raise_value_error_with_the_command_lines_message(
 
 
 def test_names_the_command_line_spells_as_flags_are_checked_too() -> None:
-    with pytest.raises(ValueError, match="method 'fast': expected manifold or direct"):
+    with pytest.raises(ValueError, match="method 'fast': expected manifold, direct or adaptive"):
         pegtwin.trial("cross", 0.5, method="fast")
     with pytest.raises(ValueError, match="start 'side': expected partial or above"):
         pegtwin.trial("cross", 0.5, start="side")
