@@ -120,7 +120,11 @@ pub fn write_atomically_with(
         .file_name()
         .ok_or_else(|| Error::file(path, "is not a file path"))?;
     ensure_replaceable(path)?;
-    let tmp = path.with_file_name(format!(".{}.partial", name.to_string_lossy()));
+    let tmp = path.with_file_name(format!(
+        ".{}.{}.partial",
+        name.to_string_lossy(),
+        writer_tag()
+    ));
     let io = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
     let written = std::fs::File::create(&tmp).and_then(|f| {
         let mut w = std::io::BufWriter::new(f);
@@ -135,6 +139,26 @@ pub fn write_atomically_with(
         })
 }
 
+/// A name for one write of this process, unique among the writers that may share a folder:
+/// the host, the process and a count of the process's writes. Writers of the same file (two
+/// shards of a job array caching one manifold on a shared file system) each fill their own
+/// temporary file, and each rename replaces the file whole: a reader sees one writer's file,
+/// never a mix.
+fn writer_tag() -> String {
+    static HOST: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let host = HOST.get_or_init(|| {
+        let name = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+        let name: String = (name.trim().chars())
+            .filter(|c| c.is_ascii_alphanumeric() || *c == '-')
+            .take(64)
+            .collect();
+        if name.is_empty() { "host".into() } else { name }
+    });
+    let n = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    format!("{host}-{}-{n}", std::process::id())
+}
+
 /// Checks before a long run that `path` can be written later: its folder exists and takes a
 /// file, and the path is not a folder. Leaves nothing behind.
 pub fn ensure_writable(path: &Path) -> Result<()> {
@@ -145,8 +169,45 @@ pub fn ensure_writable(path: &Path) -> Result<()> {
     let name = path
         .file_name()
         .ok_or_else(|| Error::file(path, "is not a file path"))?;
-    let probe = path.with_file_name(format!(".{}.probe", name.to_string_lossy()));
+    let probe = path.with_file_name(format!(
+        ".{}.{}.probe",
+        name.to_string_lossy(),
+        writer_tag()
+    ));
     std::fs::write(&probe, b"")
         .and_then(|()| std::fs::remove_file(&probe))
         .map_err(|e| Error::file(path, format!("cannot write: {e}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Writers racing to one file (shards caching one manifold) leave one writer's bytes whole
+    /// and no temporary file.
+    #[test]
+    fn racing_writers_leave_one_whole_file() {
+        let dir = std::env::temp_dir().join(format!("pegtwin-race-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("m.manifold");
+        let contents: Vec<Vec<u8>> = (0..8u8).map(|i| vec![i; 1 << 20]).collect();
+        std::thread::scope(|s| {
+            for bytes in &contents {
+                let path = &path;
+                s.spawn(move || {
+                    for _ in 0..4 {
+                        write_atomically(path, bytes).unwrap();
+                    }
+                });
+            }
+        });
+        let written = std::fs::read(&path).unwrap();
+        assert!(contents.contains(&written), "a mix of writers' bytes");
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("m.manifold")]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -123,16 +123,23 @@ fn campaign_is_identical_across_threads_shards_and_a_kill() {
     assert_eq!(trials(&two), reference, "1 vs 2 threads, replays or none");
     assert!(replays_of(&two).is_empty(), "--replays none");
 
-    for i in 0..2 {
-        let shard = format!("{i}/2");
-        let o = campaign(
-            &scenario,
-            &t.join(format!("shard{i}")),
-            &cache,
-            &["--shard", &shard],
-        );
-        assert!(o.status.success(), "{}", stderr(&o));
-    }
+    let o = campaign(&scenario, &t.join("shard0"), &cache, &["--shard", "0/2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Shard 1 as the second task of a Slurm job array numbered 5-6 gets it (`--shard auto`).
+    let o = Command::new(env!("CARGO_BIN_EXE_pegtwin"))
+        .args(["campaign", &scenario, "--shard", "auto", "--cache-dir"])
+        .arg(&cache)
+        .arg("--out")
+        .arg(t.join("shard1"))
+        .envs([
+            ("SLURM_ARRAY_TASK_ID", "6"),
+            ("SLURM_ARRAY_TASK_MIN", "5"),
+            ("SLURM_ARRAY_TASK_MAX", "6"),
+            ("SLURM_ARRAY_TASK_COUNT", "2"),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
     let merged = t.join("merged");
     let o = pegtwin(&[
         "merge",
@@ -480,6 +487,25 @@ fn manifolds_built_side_by_side_are_the_files_built_alone() {
     let (a, b) = (files(&together), files(&alone));
     assert_eq!(a.len(), 2, "two manifolds built");
     assert!(a == b, "the same files, byte for byte");
+    // `manifold build --scenario` builds what the campaign would (a job array's first step).
+    let prebuilt = t.join("prebuilt");
+    let build = [
+        "manifold",
+        "build",
+        "--scenario",
+        &s,
+        "--quiet",
+        "--cache-dir",
+    ];
+    let o = pegtwin(&[&build[..], &[prebuilt.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        files(&prebuilt) == a,
+        "manifold build --scenario: the campaign's files"
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains("2 reference manifolds"));
+    let o = pegtwin(&[&build[..], &[prebuilt.to_str().unwrap(), "--out", "x"]].concat());
+    assert_eq!(o.status.code(), Some(2), "--scenario takes no --out");
 }
 
 /// Every scenario shipped in `scenarios/` (and under it) loads and passes its checks (assembly

@@ -25,7 +25,8 @@ pub struct CampaignArgs {
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Run only shard I of N (0 <= I < N): trial number n belongs to shard n % N.
+    /// Run only shard I of N (0 <= I < N): trial number n belongs to shard n % N. `auto`: the
+    /// shard a Slurm job array or a Kubernetes Indexed Job gives this task (deploy/README.md).
     #[arg(long)]
     pub shard: Option<String>,
     /// Complete a campaign that was interrupted in --out.

@@ -116,10 +116,11 @@ pub enum GeometryAction {
 }
 
 /// Which pair a trial or a manifold build runs: a built-in at a clearance, or an assembly file.
+/// The command that flattens it requires one of `geometry` and `assembly` (an `ArgGroup`).
 #[derive(Args)]
 pub struct PairChoice {
     /// Built-in geometry name (see `geometry list`).
-    #[arg(long, required_unless_present = "assembly", requires = "clearance_mm")]
+    #[arg(long, requires = "clearance_mm")]
     pub geometry: Option<String>,
     /// Diametral clearance of the built-in, mm.
     #[arg(long, allow_negative_numbers = true, requires = "geometry")]

@@ -276,12 +276,25 @@ pub fn manifold_command(action: ManifoldAction) -> Result<i32> {
 }
 
 #[derive(Args)]
+#[command(group(clap::ArgGroup::new("pair").required(true).args(["geometry", "assembly", "scenario"])))]
 pub struct BuildArgs {
     #[command(flatten)]
     pub pair: super::PairChoice,
+    /// Instead of one pair: every reference manifold a scenario's campaign needs, built into (or
+    /// found in) the cache folder, as the campaign would build them; so that the shards of a job
+    /// array find them ready (deploy/README.md). The scenario's `[manifold]` says how.
+    #[arg(long, conflicts_with_all = ["out", "points", "episodes", "episode_s", "seed", "sampler"])]
+    pub scenario: Option<PathBuf>,
+    /// With --scenario: the folder of cached manifolds (default: $XDG_CACHE_HOME/pegtwin or
+    /// ~/.cache/pegtwin).
+    #[arg(long, requires = "scenario")]
+    pub cache_dir: Option<PathBuf>,
+    /// With --scenario: worker threads (default: all cores). The files do not depend on it.
+    #[arg(long, requires = "scenario")]
+    pub threads: Option<usize>,
     /// Output manifold file.
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(long, required_unless_present = "scenario")]
+    pub out: Option<PathBuf>,
     /// Poses kept after downsampling (the paper found 1e4-1e5 best).
     #[arg(long, default_value_t = ManifoldSpec::default().points)]
     pub points: usize,
@@ -303,13 +316,20 @@ pub struct BuildArgs {
 }
 
 fn build(args: BuildArgs) -> Result<()> {
+    if let Some(scenario) = &args.scenario {
+        return build_for_scenario(scenario, &args);
+    }
+    let out = args
+        .out
+        .as_deref()
+        .expect("clap requires --out without --scenario");
     let source = args.pair.source();
     let (pair, warnings) = source.load()?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
     if args.sampler == Sampler::Geometric {
-        return build_geometric(&pair, &args);
+        return build_geometric(&pair, &args, out);
     }
     let spec = source.robot()?;
     let (robot, _) = spec.load()?;
@@ -347,7 +367,7 @@ fn build(args: BuildArgs) -> Result<()> {
         &|| bar.inc(1),
     )?;
     bar.finish_and_clear();
-    file::save(&report.manifold, &args.out)?;
+    file::save(&report.manifold, out)?;
     for (episode, fault) in &report.faults {
         eprintln!(
             "warning: episode {episode} dropped: sim_fault at {:.3} s: {}",
@@ -362,24 +382,49 @@ fn build(args: BuildArgs) -> Result<()> {
         report.raw_count,
         report.manifold.len()
     );
-    print_info(&args.out, &report.manifold, false);
+    print_info(out, &report.manifold, false);
+    Ok(())
+}
+
+/// `manifold build --scenario FILE`: every reference manifold the scenario's cells need, into
+/// the cache folder (those already there are checked and kept).
+fn build_for_scenario(path: &Path, args: &BuildArgs) -> Result<()> {
+    let scenario = pegtwin::campaign::scenario::Scenario::load(path)?;
+    let bars = super::progress::Bars::new(
+        !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr()),
+    );
+    let options = super::campaign::run_options(&args.cache_dir, &bars)?;
+    let pool = pegtwin::campaign::run::worker_pool(args.threads)?;
+    let started = std::time::Instant::now();
+    let count = pool.install(|| pegtwin::campaign::run::build_manifolds(&scenario, &options))?;
+    println!(
+        "{count} reference manifold{} of {} ready in {} ({:.1} s)",
+        if count == 1 { "" } else { "s" },
+        path.display(),
+        options.cache_dir.display(),
+        started.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
 /// `manifold build --sampler geometric`: the parts only (no robot, no episodes).
-fn build_geometric(pair: &pegtwin::twin::geometry::PartPair, args: &BuildArgs) -> Result<()> {
+fn build_geometric(
+    pair: &pegtwin::twin::geometry::PartPair,
+    args: &BuildArgs,
+    out: &Path,
+) -> Result<()> {
     let started = std::time::Instant::now();
     let config = ManifoldSpec::default().sampler();
     let report =
         pegtwin::method::manifold::geometric::build(pair, &config, args.points, args.seed)?;
-    file::save(&report.manifold, &args.out)?;
+    file::save(&report.manifold, out)?;
     println!(
         "{} contact poses from the parts' geometry in {:.1} s, {} kept (voxel grid)",
         report.raw_count,
         started.elapsed().as_secs_f64(),
         report.manifold.len()
     );
-    print_info(&args.out, &report.manifold, false);
+    print_info(out, &report.manifold, false);
     Ok(())
 }
 

@@ -65,6 +65,7 @@ impl RecordingArgs {
 
 /// The library's default offset half-ranges, mm and deg (the paper's U(-5, 5)).
 #[derive(Args)]
+#[command(group(clap::ArgGroup::new("pair").required(true).args(["geometry", "assembly"])))]
 pub struct TrialArgs {
     #[command(flatten)]
     pub pair: PairChoice,

@@ -27,11 +27,15 @@ impl Shard {
     /// The whole campaign.
     pub const WHOLE: Shard = Shard { index: 0, count: 1 };
 
-    /// Parses `I/N` with 0 <= I < N.
+    /// Parses `I/N` with 0 <= I < N, or `auto`: the index and count the scheduler running this
+    /// process gives it ([`Shard::from_scheduler`] on the process's environment).
     pub fn parse(text: &str) -> Result<Self> {
+        if text.trim() == "auto" {
+            return Shard::from_scheduler(&|name| std::env::var(name).ok());
+        }
         let bad = || {
             Error::Input(format!(
-                "--shard {text}: expected I/N with 0 <= I < N (e.g. 0/4)"
+                "--shard {text}: expected I/N with 0 <= I < N (e.g. 0/4), or auto"
             ))
         };
         let (i, n) = text.split_once('/').ok_or_else(bad)?;
@@ -45,9 +49,105 @@ impl Shard {
         Ok(Shard { index, count })
     }
 
+    /// The shard a job scheduler gives this process, read through `var` (an environment lookup):
+    /// a Slurm job array's task (`SLURM_ARRAY_TASK_ID` minus `SLURM_ARRAY_TASK_MIN`, of
+    /// `SLURM_ARRAY_TASK_COUNT`; the array's indices must be consecutive), else a Kubernetes
+    /// Indexed Job's pod (`JOB_COMPLETION_INDEX`, of `PEGTWIN_SHARD_COUNT`, which the job's
+    /// manifest sets to its `completions`). An error names what is missing or inconsistent.
+    pub fn from_scheduler(var: &dyn Fn(&str) -> Option<String>) -> Result<Self> {
+        if var("SLURM_ARRAY_TASK_ID").is_some() {
+            return Shard::from_slurm(var);
+        }
+        if var("JOB_COMPLETION_INDEX").is_some() {
+            let index = scheduler_number(var, "JOB_COMPLETION_INDEX")?;
+            let count = var("PEGTWIN_SHARD_COUNT").ok_or_else(|| {
+                Error::Input(
+                    "--shard auto: JOB_COMPLETION_INDEX is set (a Kubernetes Indexed Job) but \
+                     PEGTWIN_SHARD_COUNT is not: set it to the job's `completions` in its manifest"
+                        .into(),
+                )
+            })?;
+            let count = parse_number("PEGTWIN_SHARD_COUNT", &count)?;
+            return Shard::checked(index, count, "JOB_COMPLETION_INDEX", "PEGTWIN_SHARD_COUNT");
+        }
+        Err(Error::Input(
+            "--shard auto: no job scheduler gave this process a shard: expected SLURM_ARRAY_TASK_ID \
+             (a Slurm job array, sbatch --array) or JOB_COMPLETION_INDEX with PEGTWIN_SHARD_COUNT \
+             (a Kubernetes Indexed Job); or give the shard as --shard I/N"
+                .into(),
+        ))
+    }
+
+    /// A Slurm job array's task as a shard (see [`Shard::from_scheduler`]).
+    fn from_slurm(var: &dyn Fn(&str) -> Option<String>) -> Result<Self> {
+        let id = scheduler_number(var, "SLURM_ARRAY_TASK_ID")?;
+        let min = scheduler_number(var, "SLURM_ARRAY_TASK_MIN")?;
+        let count = scheduler_number(var, "SLURM_ARRAY_TASK_COUNT")?;
+        if let Some(step) = var("SLURM_ARRAY_TASK_STEP")
+            && parse_number("SLURM_ARRAY_TASK_STEP", &step)? != 1
+        {
+            return Err(Error::Input(format!(
+                "--shard auto: SLURM_ARRAY_TASK_STEP={step}: expected an array of consecutive \
+                 indices (sbatch --array=0-{})",
+                count.saturating_sub(1)
+            )));
+        }
+        if let Some(max) = var("SLURM_ARRAY_TASK_MAX") {
+            let max = parse_number("SLURM_ARRAY_TASK_MAX", &max)?;
+            if max.checked_sub(min).map(|span| span + 1) != Some(count) {
+                return Err(Error::Input(format!(
+                    "--shard auto: the Slurm array runs indices {min}-{max} but has \
+                     {count} tasks: expected consecutive indices (sbatch --array={min}-{})",
+                    min + count.saturating_sub(1)
+                )));
+            }
+        }
+        let index = id.checked_sub(min).ok_or_else(|| {
+            Error::Input(format!(
+                "--shard auto: SLURM_ARRAY_TASK_ID={id} is below SLURM_ARRAY_TASK_MIN={min}"
+            ))
+        })?;
+        Shard::checked(
+            index,
+            count,
+            "SLURM_ARRAY_TASK_ID",
+            "SLURM_ARRAY_TASK_COUNT",
+        )
+    }
+
+    /// `index` of `count`, when 0 <= index < count (the error names the two variables).
+    fn checked(index: usize, count: usize, index_var: &str, count_var: &str) -> Result<Self> {
+        if count == 0 || index >= count {
+            return Err(Error::Input(format!(
+                "--shard auto: {index_var} gives shard {index} of {count} ({count_var}): \
+                 expected 0 <= index < count"
+            )));
+        }
+        Ok(Shard { index, count })
+    }
+
     pub(super) fn holds(&self, number: usize) -> bool {
         number % self.count == self.index
     }
+}
+
+/// The whole number in the scheduler's variable `name`, which must be set.
+fn scheduler_number(var: &dyn Fn(&str) -> Option<String>, name: &str) -> Result<usize> {
+    let text = var(name).ok_or_else(|| {
+        Error::Input(format!(
+            "--shard auto: {name} is not set (the scheduler sets it for each task)"
+        ))
+    })?;
+    parse_number(name, &text)
+}
+
+/// `text`, the value of the variable `name`, as a whole number.
+fn parse_number(name: &str, text: &str) -> Result<usize> {
+    text.trim().parse().map_err(|_| {
+        Error::Input(format!(
+            "--shard auto: {name}={text}: expected a whole number"
+        ))
+    })
 }
 
 /// What `campaign.json` holds.

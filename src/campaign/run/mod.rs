@@ -186,6 +186,14 @@ pub fn prepare(scenario: &Scenario, cells: &[usize], options: &RunOptions) -> Re
     })
 }
 
+/// Every reference manifold the cells of `scenario` need, loaded from the cache folder or built
+/// into it, as [`prepare`] does for the whole campaign: a job array's shards then find them
+/// ready instead of each building the same files. Returns how many there are.
+pub fn build_manifolds(scenario: &Scenario, options: &RunOptions) -> Result<usize> {
+    let cells: Vec<usize> = (0..scenario.cells().len()).collect();
+    Ok(prepare(scenario, &cells, options)?.manifolds.len())
+}
+
 /// One trial of a scenario, ready to run on its own as its campaign runs it: cell `cell` and trial
 /// `trial`, numbered from 0 as in `trials.jsonl`. Only that trial's pair is prepared (its
 /// manifold loaded from the cache, or built into it). Its record is the campaign's, bit for bit:
@@ -615,5 +623,61 @@ mod tests {
             let e = Shard::parse(bad).unwrap_err().to_string();
             assert!(e.contains("--shard"), "{e}");
         }
+    }
+
+    /// `--shard auto` reads the shard from a Slurm job array or a Kubernetes Indexed Job.
+    #[test]
+    fn the_scheduler_gives_the_shard() {
+        let env = |pairs: &'static [(&'static str, &'static str)]| {
+            move |name: &str| {
+                (pairs.iter())
+                    .find(|(k, _)| *k == name)
+                    .map(|(_, v)| v.to_string())
+            }
+        };
+        let slurm = env(&[
+            ("SLURM_ARRAY_TASK_ID", "6"),
+            ("SLURM_ARRAY_TASK_MIN", "5"),
+            ("SLURM_ARRAY_TASK_MAX", "8"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ("SLURM_ARRAY_TASK_STEP", "1"),
+        ]);
+        assert_eq!(
+            Shard::from_scheduler(&slurm).unwrap(),
+            Shard { index: 1, count: 4 }
+        );
+        let k8s = env(&[("JOB_COMPLETION_INDEX", "2"), ("PEGTWIN_SHARD_COUNT", "3")]);
+        assert_eq!(
+            Shard::from_scheduler(&k8s).unwrap(),
+            Shard { index: 2, count: 3 }
+        );
+        let refused = |pairs, wanted: &str| {
+            let e = Shard::from_scheduler(&env(pairs)).unwrap_err().to_string();
+            assert!(e.contains("--shard auto") && e.contains(wanted), "{e}");
+        };
+        refused(&[], "SLURM_ARRAY_TASK_ID");
+        refused(&[("JOB_COMPLETION_INDEX", "0")], "PEGTWIN_SHARD_COUNT");
+        refused(
+            &[("JOB_COMPLETION_INDEX", "3"), ("PEGTWIN_SHARD_COUNT", "3")],
+            "0 <= index < count",
+        );
+        refused(&[("SLURM_ARRAY_TASK_ID", "1")], "SLURM_ARRAY_TASK_MIN");
+        refused(
+            &[
+                ("SLURM_ARRAY_TASK_ID", "2"),
+                ("SLURM_ARRAY_TASK_MIN", "0"),
+                ("SLURM_ARRAY_TASK_COUNT", "2"),
+                ("SLURM_ARRAY_TASK_STEP", "2"),
+            ],
+            "consecutive",
+        );
+        refused(
+            &[
+                ("SLURM_ARRAY_TASK_ID", "x"),
+                ("SLURM_ARRAY_TASK_MIN", "0"),
+                ("SLURM_ARRAY_TASK_COUNT", "2"),
+            ],
+            "SLURM_ARRAY_TASK_ID=x",
+        );
     }
 }
