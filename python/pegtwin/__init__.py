@@ -170,14 +170,25 @@ def _flat_record(record: Dict[str, Any]) -> Dict[str, Any]:
     row["fault_source"] = None if energy is None else energy["source"]
     for name, v in result.pop("times").items():
         row[f"time_{name}"] = v
-    row.update(result)
+    for name, v in result.items():
+        _flatten_into(row, name, v)
     if row["final_depth_mm"] is None:
         row["final_depth_mm"] = np.nan
     return row
 
 
+def _flatten_into(row: Dict[str, Any], name: str, value: Any) -> None:
+    """``value`` under the column ``name``: a dict's fields as ``name_field``, recursively."""
+    if isinstance(value, dict):
+        for key, v in value.items():
+            _flatten_into(row, f"{name}_{key}", v)
+    else:
+        row[name] = value
+
+
 def load_trials(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
-    """The trials of a campaign folder, one row per trial.
+    """The trials of a campaign folder (or of the Parquet file ``pegtwin export`` wrote from
+    one: the same columns, read with pyarrow), one row per trial.
 
     Columns: ``cell``, ``trial``, ``seed``, ``geometry``, ``clearance_mm``, ``method``,
     ``start``, ``t_obs_s``, ``outcome``, ``success``, ``final_depth_mm``, ``peak_fz_n``,
@@ -190,10 +201,14 @@ def load_trials(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
     ``sim_fault``: ``drives``, the commanded motion; ``contacts`` or ``integration``, the
     physics), ``stopped``, the phase times ``time_search_s`` ...
     ``time_insert_s``, ``insert_fz_n`` (the insertion's |Fz| profile, a list per row), and
-    ``insert_end`` (what ended the insertion: ``seat``, ``jam``, ``travel`` or ``limit``).
+    ``insert_end`` (what ended the insertion: ``seat``, ``jam``, ``travel`` or ``limit``); the
+    real cell's draw (``real_cell_contact_friction``, ...) and the print's (``print_clearance_m``,
+    ...), nested objects flattened with ``_``.
     """
     import pandas as pd
 
+    if Path(dir).is_file():
+        return _load_parquet(Path(dir))
     path = Path(dir) / "trials.jsonl"
     if not path.is_file():
         raise ValueError(f"{path}: no trials.jsonl (is {dir} a campaign folder?)")
@@ -207,6 +222,25 @@ def load_trials(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
             except (json.JSONDecodeError, KeyError, TypeError) as e:
                 raise ValueError(f"{path}: line {n}: not a trial record ({e})") from None
     return pd.DataFrame(rows)
+
+
+def _load_parquet(path: Path) -> "pandas.DataFrame":  # noqa: F821
+    """A table ``pegtwin export --parquet`` wrote."""
+    import pandas as pd
+
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        raise ImportError(
+            f"{path}: reading Parquet needs pyarrow: pip install pyarrow"
+        ) from None
+    with open(path, "rb") as f:
+        if f.read(4) != b"PAR1":
+            raise ValueError(
+                f"{path}: not a Parquet file (expected a campaign folder, or the file "
+                "`pegtwin export --parquet` wrote)"
+            )
+    return pd.read_parquet(path)
 
 
 def load_summary(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821

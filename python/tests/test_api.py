@@ -163,6 +163,34 @@ def test_a_campaign_writes_its_folder_and_loads_as_dataframes(
     same = (tmp_path / "cli" / "trials.jsonl").read_text()
     assert (tmp_path / "run" / "trials.jsonl").read_text() == same
 
+    # `pegtwin export --parquet`: the same table, read by pyarrow and through load_trials.
+    pq = pytest.importorskip("pyarrow.parquet")
+    table_path = tmp_path / "trials.parquet"
+    o = run_cli(cli, "export", out, "--parquet", str(table_path))
+    assert o.returncode == 0, o.stderr
+    table = pq.read_table(table_path)
+    assert table.num_rows == 4
+    assert str(table.schema.field("seed").type) == "uint64"
+    assert str(table.schema.field("fault_time_s").type) == "double"
+    assert list(table.column("seed").to_pylist()) == list(trials["seed"])
+    exported = pegtwin.load_trials(table_path)
+    assert set(exported.columns) == set(trials.columns)
+    assert "real_cell_contact_friction" in trials.columns
+
+    def missing(v: object) -> bool:
+        return v is None or (isinstance(v, float) and np.isnan(v))
+
+    for column in trials.columns:
+        for x, y in zip(exported[column], trials[column]):
+            if column in ("estimate_covariance", "insert_fz_n", "real_cell_wrench_bias"):
+                x = None if x is None else [list(r) if hasattr(r, "__len__") else r for r in x]
+                assert x == y or (missing(x) and missing(y)), (column, x, y)
+            else:
+                assert x == y or (pd.isna(x) and pd.isna(y)), (column, x, y)
+    o = run_cli(cli, "export", str(tmp_path), "--parquet", str(tmp_path / "no.parquet"))
+    assert o.returncode == 2 and "campaign.json" in o.stderr
+    assert not (tmp_path / "no.parquet").exists()
+
 
 def test_campaign_errors_are_value_errors(scenario: Path, tmp_path: Path, cli: Path) -> None:
     o = run_cli(cli, "campaign", str(scenario), "--out", str(tmp_path / "x"), "--threads", "0")
@@ -261,3 +289,34 @@ def test_a_manifold_loads_as_arrays_and_registers(cli: Path, tmp_path: Path) -> 
         pegtwin.register(manifold, observations[:3], init)
     with pytest.raises(ValueError, match="nothing.manifold"):
         pegtwin.Manifold.load(tmp_path / "nothing.manifold")
+
+
+def test_a_trace_as_mcap_reads_back_as_the_csv_trace(cli: Path, tmp_path: Path) -> None:
+    reader = pytest.importorskip("mcap.reader")
+    args = ["trial", "--geometry", "cross", "--clearance-mm", "0.5", "--method", "direct",
+            "--t-obs", "1", "--seed", "3"]
+    for name in ["trace.csv", "trace.mcap"]:
+        o = run_cli(cli, *args, "--trace", str(tmp_path / name))
+        assert o.returncode == 0, o.stderr
+    csv = pd.read_csv(tmp_path / "trace.csv")
+    topics: dict = {}
+    with open(tmp_path / "trace.mcap", "rb") as f:
+        mcap = reader.make_reader(f)
+        summary = mcap.get_summary()
+        schemas = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+        assert schemas["/tcp/pose"] == "foxglove.PoseInFrame"
+        for _, channel, message in mcap.iter_messages():
+            assert channel.message_encoding == "json"
+            topics.setdefault(channel.topic, []).append((message.log_time, json.loads(message.data)))
+    assert set(topics) == {"/tcp/pose", "/tcp/pose_rpy", "/wrench/estimated", "/wrench/true", "/phase"}
+    for samples in topics.values():
+        assert len(samples) == len(csv)
+    rpy = topics["/tcp/pose_rpy"]
+    assert [t for t, _ in rpy] == [round(s * 1e9) for s in csv["time_s"]]
+    # The CSV holds the same doubles, written with 17 significant digits or fewer.
+    assert np.allclose([m["x"] for _, m in rpy], csv["x"], rtol=1e-15, atol=0)
+    est = [m["force"]["z"] for _, m in topics["/wrench/estimated"]]
+    assert np.allclose(est, csv["est_fz"], rtol=1e-15, atol=0)
+    assert [m["phase"] for _, m in topics["/phase"]] == list(csv["phase"])
+    pose = topics["/tcp/pose"][-1][1]["pose"]["orientation"]
+    assert abs(sum(pose[k] ** 2 for k in "xyzw") - 1) < 1e-12

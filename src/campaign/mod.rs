@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod calibrate;
 pub mod check;
+pub mod export;
 pub mod records;
 pub mod replays;
 pub mod report;

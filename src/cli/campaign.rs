@@ -69,6 +69,15 @@ pub struct CheckArgs {
 }
 
 #[derive(Args)]
+pub struct ExportArgs {
+    /// Results folder of a finished campaign (merged, when it ran in shards).
+    pub dir: PathBuf,
+    /// The Parquet file to write (its trials.jsonl stays the canonical record).
+    #[arg(long)]
+    pub parquet: PathBuf,
+}
+
+#[derive(Args)]
 pub struct TuneArgs {
     /// Scenario file (TOML): its cells and offsets; `trials` caps the trials per cell of the
     /// last rung.
@@ -196,6 +205,12 @@ pub fn check_command(args: CheckArgs) -> Result<i32> {
         }
     );
     Ok(i32::from(failed))
+}
+
+pub fn export_command(args: ExportArgs) -> Result<i32> {
+    let rows = pegtwin::campaign::export::write_parquet(&args.dir, &args.parquet)?;
+    println!("{rows} trials written to {}", args.parquet.display());
+    Ok(0)
 }
 
 pub fn tune_command(args: TuneArgs) -> Result<i32> {

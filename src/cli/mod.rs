@@ -26,7 +26,7 @@ mod trial;
 mod validate;
 pub use assembly::AssemblyAction;
 pub use bench::BenchArgs;
-pub use campaign::{CampaignArgs, CheckArgs, MergeArgs, TuneArgs};
+pub use campaign::{CampaignArgs, CheckArgs, ExportArgs, MergeArgs, TuneArgs};
 pub use registration::{ManifoldAction, RegisterArgs};
 pub use robot::RobotAction;
 pub use trial::{RerunArgs, TrialArgs};
@@ -82,6 +82,9 @@ pub enum Command {
     Merge(MergeArgs),
     /// The regression gate: hold a finished campaign to a baseline (exit 1 on a regression).
     Check(CheckArgs),
+    /// A finished campaign's trials as a Parquet table (one row per trial, flat columns with
+    /// units in their names), for pandas, polars, DuckDB and Arrow.
+    Export(ExportArgs),
     /// Search the observation and insertion gains for the best success rate and lowest force.
     Tune(TuneArgs),
     /// Fit the real cell's [cell] values to figures measured on it, and predict the figures
@@ -265,6 +268,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Campaign(args) => campaign::campaign_command(args),
         Command::Merge(args) => campaign::merge_command(args),
         Command::Check(args) => campaign::check_command(args),
+        Command::Export(args) => campaign::export_command(args),
         Command::Tune(args) => campaign::tune_command(args),
         Command::Calibrate(args) => calibrate::calibrate_command(args),
         Command::Bench(args) => bench::bench_command(args),

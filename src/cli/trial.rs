@@ -15,6 +15,7 @@ use pegtwin::method::manifold::Manifold;
 use pegtwin::method::manifold::cache::Sampler;
 use pegtwin::method::request::{TrialRequest, default_offsets_mm_deg};
 use pegtwin::method::session::{Recorder, trace_csv};
+use pegtwin::method::trace_mcap::trace_mcap;
 use pegtwin::method::trial::TrialResult;
 use pegtwin::replay::Replay;
 use pegtwin::twin::geometry::PartPair;
@@ -25,7 +26,8 @@ use std::path::PathBuf;
 /// Where a trial's recordings go.
 #[derive(Args)]
 pub struct RecordingArgs {
-    /// Write the time series (time, phase, TCP pose, estimated and true wrench, contact) as CSV.
+    /// Write the 1 kHz time series (time, phase, TCP pose, estimated and true wrench, contact):
+    /// CSV, or MCAP for Foxglove and PlotJuggler when the file name ends in `.mcap`.
     #[arg(long)]
     pub trace: Option<PathBuf>,
     /// Write a 3-D replay of the trial: one self-contained HTML page (open it in a browser).
@@ -54,7 +56,15 @@ impl RecordingArgs {
         let result = run(recording.then_some(&mut recorders as &mut dyn Recorder))?;
         let (rows, page) = recorders;
         if let Some(path) = &self.trace {
-            pegtwin::files::write_atomically(path, &trace_csv(&rows))?;
+            let is_mcap = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+            let bytes = if is_mcap {
+                trace_mcap(&rows)?
+            } else {
+                trace_csv(&rows)
+            };
+            pegtwin::files::write_atomically(path, &bytes)?;
         }
         if let Some(path) = &self.replay {
             page.write_html(path, &result, manifold)?;

@@ -19,4 +19,5 @@ pub mod request;
 pub mod search;
 pub mod seeds;
 pub mod session;
+pub mod trace_mcap;
 pub mod trial;
