@@ -19,6 +19,7 @@ from typing import Any, Callable, Dict, Optional, Union
 import numpy as np
 
 from . import _pegtwin
+from . import gym  # noqa: F401  (pegtwin.gym.PegInHoleEnv; registers "pegtwin/PegInHole-v0")
 
 __version__ = _pegtwin.__version__
 
@@ -27,6 +28,7 @@ PathLike = Union[str, "os.PathLike[str]"]
 __all__ = [
     "Manifold",
     "campaign",
+    "gym",
     "load_summary",
     "load_trials",
     "register",

@@ -17,11 +17,15 @@ Action, ``Box(-1, 1, (6,))`` (``(8,)`` with ``variable_stiffness=True``), clippe
          Sunrise's 0-5000 N/m and 0-300 N m/rad (default: the insertion's 1500/2000 N/m and
          50 N m/rad).
 
-Observation, ``Box(-inf, inf, (12,), float32)``, what the real robot measures:
-    0-5:  TCP pose in the nominal hole frame from the joint encoders: x, y, z (m), roll, pitch,
-          yaw (rad); the tip is at z < 0 once inside the hole;
+Observation, ``Box(low, high, (12,), float32)``, what the real robot measures:
+    0-5:  TCP pose in the nominal hole frame from the joint encoders: x, y, z (m, within
+          +-2 m: an arm's reach around the hole), roll, yaw (rad, +-pi), pitch (rad, +-pi/2);
+          the tip is at z < 0 once inside the hole;
     6-11: the external wrench estimated from the joint torque sensors (with their noise), base
-          frame: fx, fy, fz (N), tx, ty, tz (N m).
+          frame: fx, fy, fz (N, within +-1000 N), tx, ty, tz (N m, within +-320 N m, the iiwa
+          14's largest joint torque).
+    A value beyond its bound is clipped to it and ``info["observation_clipped"]`` is True (the
+    unclipped physics goes on; ``info["true_wrench"]`` is never clipped).
 
 Reward per step: +1 per mm of depth gained in the true hole, -0.01 per N of estimated force
 beyond 10 N, +10 on success. ``terminated``: success (the tip within 2 mm of the cavity floor,
@@ -45,7 +49,17 @@ from gymnasium import spaces
 
 from . import _pegtwin
 
-__all__ = ["PegInHoleEnv"]
+__all__ = ["PegInHoleEnv", "ENV_ID", "OBSERVATION_LOW", "OBSERVATION_HIGH"]
+
+#: The environment's Gymnasium id: ``gymnasium.make("pegtwin/PegInHole-v0", **kwargs)``.
+ENV_ID = "pegtwin/PegInHole-v0"
+
+#: The observation's bounds (module docs): pose in m and rad, wrench in N and N m.
+OBSERVATION_HIGH = np.array(
+    [2.0, 2.0, 2.0, np.pi, np.pi / 2, np.pi, 1000.0, 1000.0, 1000.0, 320.0, 320.0, 320.0],
+    dtype=np.float32,
+)
+OBSERVATION_LOW = -OBSERVATION_HIGH
 
 
 class PegInHoleEnv(gym.Env):
@@ -96,7 +110,9 @@ class PegInHoleEnv(gym.Env):
         self.episode_s: float = self._env.episode_s
         n = self._env.action_len
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(12,), dtype=np.float32)
+        self.observation_space = spaces.Box(
+            OBSERVATION_LOW, OBSERVATION_HIGH, shape=(12,), dtype=np.float32
+        )
 
     def reset(
         self, *, seed: Optional[int] = None, options: Optional[Dict[str, Any]] = None
@@ -111,11 +127,23 @@ class PegInHoleEnv(gym.Env):
             trial_seed = int(self.np_random.integers(0, 2**63 - 1))
         obs, info = self._env.reset(trial_seed)
         info["trial_seed"] = trial_seed
-        return obs.astype(np.float32), info
+        return _bounded(obs, info), info
 
     def step(
         self, action: np.ndarray
     ) -> Tuple[np.ndarray, float, bool, bool, Dict[str, Any]]:
         a = np.ascontiguousarray(np.asarray(action, dtype=np.float64).reshape(-1))
         obs, reward, terminated, truncated, info = self._env.step(a)
-        return obs.astype(np.float32), float(reward), terminated, truncated, info
+        return _bounded(obs, info), float(reward), terminated, truncated, info
+
+
+def _bounded(obs: np.ndarray, info: Dict[str, Any]) -> np.ndarray:
+    """The observation as float32 within the space's bounds; says in ``info`` if it was not."""
+    out = obs.astype(np.float32)
+    clipped = bool(np.any(out < OBSERVATION_LOW) or np.any(out > OBSERVATION_HIGH))
+    info["observation_clipped"] = clipped
+    return np.clip(out, OBSERVATION_LOW, OBSERVATION_HIGH) if clipped else out
+
+
+if ENV_ID not in gym.registry:
+    gym.register(id=ENV_ID, entry_point="pegtwin.gym:PegInHoleEnv")

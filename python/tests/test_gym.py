@@ -15,9 +15,29 @@ from pegtwin.gym import PegInHoleEnv
 
 def test_the_gymnasium_checker_passes() -> None:
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # unbounded Box, no render modes: both intended
+        warnings.simplefilter("ignore")  # no render modes: intended
         check_env(PegInHoleEnv())
         check_env(PegInHoleEnv(variable_stiffness=True, control_hz=50))
+
+
+def test_the_environment_is_registered_and_vectorises() -> None:
+    import gymnasium
+
+    assert pegtwin.gym.PegInHoleEnv is PegInHoleEnv  # `import pegtwin` is enough
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        env = gymnasium.make("pegtwin/PegInHole-v0", geometry="cross", clearance_mm=0.5)
+        check_env(env.unwrapped)
+    assert np.all(np.isfinite(env.observation_space.low))
+    assert np.all(np.isfinite(env.observation_space.high))
+    obs, info = env.reset(seed=3)
+    assert env.observation_space.contains(obs) and info["observation_clipped"] is False
+    envs = gymnasium.make_vec("pegtwin/PegInHole-v0", num_envs=2, vectorization_mode="sync")
+    obs, _ = envs.reset(seed=[1, 2])
+    assert obs.shape == (2, 12)
+    obs, reward, terminated, truncated, _ = envs.step(envs.action_space.sample())
+    assert obs.shape == (2, 12) and reward.shape == (2,)
+    envs.close()
 
 
 def rollout(env: PegInHoleEnv, seed: int, steps: int) -> list:
