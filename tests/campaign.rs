@@ -406,6 +406,57 @@ fn tune_writes_its_table_and_prints_a_usable_snippet() {
     ]);
     // The snippet parses (the only error left is the shard).
     assert!(stderr(&o).contains("--shard 5/2"), "{}", stderr(&o));
+
+    // Killed once it has finished an evaluation (its last line cut short), then resumed: the
+    // uninterrupted search's table. Without --resume the folder is refused.
+    let killed = t.join("killed");
+    let args = |out: &Path| {
+        let mut a: Vec<String> = [
+            "tune",
+            &scenario,
+            "--candidates",
+            "3",
+            "--first-trials",
+            "1",
+        ]
+        .map(String::from)
+        .to_vec();
+        a.extend(["--threads", "1", "--cache-dir"].map(String::from));
+        a.push(t.join("cache").to_str().unwrap().into());
+        a.extend(["--out".to_string(), out.to_str().unwrap().into()]);
+        a
+    };
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pegtwin"))
+        .args(args(&killed))
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let journal = killed.join("tune-journal.jsonl");
+    let start = Instant::now();
+    while std::fs::read_to_string(&journal).map_or(0, |s| s.lines().count()) < 2 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no evaluation kept"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on our own child's pid.
+    unsafe { libc::kill(child.id() as i32, libc::SIGKILL) };
+    child.wait().unwrap();
+    assert!(!killed.join("tune.csv").exists(), "killed before the end");
+    let kept = std::fs::read_to_string(&journal).unwrap();
+    std::fs::write(&journal, format!("{kept}{{\"rung\":0,\"tri")).unwrap();
+    let o = pegtwin(&args(&killed).iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(2), "refused without --resume");
+    let mut resumed = args(&killed);
+    resumed.push("--resume".into());
+    let o = pegtwin(&resumed.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("resuming: "), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read_to_string(killed.join("tune.csv")).unwrap(),
+        table
+    );
 }
 
 /// With several clearances the summary pools per clearance and over all of them, and the report

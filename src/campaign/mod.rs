@@ -5,6 +5,7 @@ pub mod bench;
 pub mod calibrate;
 pub mod check;
 pub mod export;
+pub mod journal;
 pub mod records;
 pub mod replays;
 pub mod report;

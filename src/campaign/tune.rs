@@ -17,6 +17,7 @@
 //! damping 0.3-1.0. The direct target's are in `DIRECT_AXES`, the method's insertion target's in
 //! `INSERTION_AXES`. Stiffnesses and forces are drawn log-uniformly.
 
+use crate::campaign::journal::Journal;
 use crate::campaign::records::TrialRecord;
 use crate::campaign::run::{
     CampaignTrials, Plan, Prepared, RunOptions, Shard, prepare, run_trials,
@@ -29,6 +30,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use std::path::Path;
 
 /// Survivors of a rung: one in `ETA`.
 const ETA: usize = 3;
@@ -376,13 +378,116 @@ fn evaluate(
     })
 }
 
+/// What a search has finished, kept in a [`Journal`] as it goes, so that a killed search
+/// resumes (`tune --resume`) to the result an uninterrupted one gives: each evaluation is a pure
+/// function of the scenario, the options, the candidate, its rung and its trials.
+pub struct TuneJournal {
+    journal: Journal,
+    known: Vec<Evaluation>,
+}
+
+/// The journal's file in a tune's output folder.
+pub const TUNE_JOURNAL: &str = "tune-journal.jsonl";
+
+impl TuneJournal {
+    /// The journal of the search `options` on `scenario` in the folder `dir`: new, or with
+    /// `resume` the one a search with the same scenario and options left there.
+    pub fn open(
+        dir: &Path,
+        scenario: &Scenario,
+        options: &TuneOptions,
+        resume: bool,
+    ) -> Result<Self> {
+        let header = serde_json::json!({
+            "tune": 1,
+            "scenario": scenario.fingerprint(),
+            "candidates": options.candidates,
+            "first_trials": options.first_trials,
+            "seed": options.seed,
+            "target": options.target.name(),
+        });
+        let (journal, entries) = Journal::open(&dir.join(TUNE_JOURNAL), &header, resume)?;
+        let known = (entries.iter())
+            .map(|e| evaluation_from_json(e, options.target))
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| {
+                Error::file(
+                    &dir.join(TUNE_JOURNAL),
+                    "holds an entry that is not an evaluation: choose another --out",
+                )
+            })?;
+        Ok(TuneJournal { journal, known })
+    }
+
+    /// How many evaluations it holds.
+    pub fn len(&self) -> usize {
+        self.known.len()
+    }
+
+    /// Whether it holds none.
+    pub fn is_empty(&self) -> bool {
+        self.known.is_empty()
+    }
+
+    /// The evaluation of `candidate` at `rung` with `trials` per cell, if it was finished.
+    fn known(&self, candidate: &Candidate, rung: usize, trials: usize) -> Option<Evaluation> {
+        (self.known.iter())
+            .find(|e| {
+                e.rung == rung && e.trials_per_cell == trials && e.candidate.id == candidate.id
+            })
+            .cloned()
+    }
+
+    /// Keeps a finished evaluation.
+    fn record(&self, e: &Evaluation) -> Result<()> {
+        self.journal.append(&serde_json::json!({
+            "rung": e.rung,
+            "trials_per_cell": e.trials_per_cell,
+            "id": e.candidate.id,
+            "values": e.candidate.values,
+            "trials": e.trials,
+            "successes": e.successes,
+            "peak_fz_n": (!e.peak_fz_n.is_nan()).then_some(e.peak_fz_n),
+        }))
+    }
+}
+
+/// An evaluation [`TuneJournal::record`] wrote, if `v` is one.
+fn evaluation_from_json(v: &serde_json::Value, target: TuneTarget) -> Option<Evaluation> {
+    let count = |key: &str| v.get(key)?.as_u64().map(|n| n as usize);
+    let values = (v.get("values")?.as_array()?.iter())
+        .map(|x| x.as_f64())
+        .collect::<Option<Vec<f64>>>()?;
+    let (trials, successes) = (count("trials")?, count("successes")?);
+    let peak = v.get("peak_fz_n")?;
+    Some(Evaluation {
+        rung: count("rung")?,
+        trials_per_cell: count("trials_per_cell")?,
+        candidate: Candidate {
+            id: count("id")?,
+            target,
+            values,
+        },
+        trials,
+        successes,
+        success_rate: successes as f64 / trials.max(1) as f64,
+        peak_fz_n: if peak.is_null() {
+            f64::NAN
+        } else {
+            peak.as_f64()?
+        },
+    })
+}
+
 /// Runs the search; returns every evaluation, rung by rung, best first within a rung.
-/// `on_rung` is told each rung's size before it runs.
+/// `on_rung` is told each rung's size before it runs. With a `journal`, each evaluation it holds
+/// is taken from it and each new one is written to it as soon as it is finished.
 pub fn tune(
     scenario: &Scenario,
     options: &TuneOptions,
     run: &RunOptions,
     on_rung: &dyn Fn(usize, usize, usize),
+    journal: Option<&TuneJournal>,
 ) -> Result<Vec<Evaluation>> {
     if options.candidates == 0 || options.first_trials == 0 {
         return Err(Error::Input(
@@ -408,7 +513,14 @@ pub fn tune(
         on_rung(rung, alive.len(), trials);
         let mut evals = alive
             .par_iter()
-            .map(|c| evaluate(scenario, &prepared, c, rung, trials))
+            .map(|c| {
+                if let Some(e) = journal.and_then(|j| j.known(c, rung, trials)) {
+                    return Ok(e);
+                }
+                let e = evaluate(scenario, &prepared, c, rung, trials)?;
+                journal.map_or(Ok(()), |j| j.record(&e))?;
+                Ok(e)
+            })
             .collect::<Result<Vec<_>>>()?;
         rank(&mut evals);
         let last = alive.len() <= 1 || trials >= scenario.trials;

@@ -7,7 +7,7 @@ use pegtwin::campaign::check::{Baseline, compare, findings_table};
 use pegtwin::campaign::replays::Replays;
 use pegtwin::campaign::run::{self as campaign, CampaignOptions, RunOptions, Shard};
 use pegtwin::campaign::scenario::Scenario;
-use pegtwin::campaign::tune::{TuneOptions, TuneTarget, tune};
+use pegtwin::campaign::tune::{TuneJournal, TuneOptions, TuneTarget, tune};
 use pegtwin::campaign::usage::Stopwatch;
 use pegtwin::campaign::{report, summary};
 use pegtwin::choice::Choice;
@@ -82,9 +82,14 @@ pub struct TuneArgs {
     /// Scenario file (TOML): its cells and offsets; `trials` caps the trials per cell of the
     /// last rung.
     pub scenario: PathBuf,
-    /// Output folder for tune.csv and the plot (new or empty).
+    /// Output folder for tune.csv and the plot (new or empty, unless --resume); it keeps
+    /// the evaluations as they finish in tune-journal.jsonl.
     #[arg(long)]
     pub out: PathBuf,
+    /// Go on with a search that was killed in --out (same scenario and options): the
+    /// evaluations it finished are kept, and the result is the uninterrupted search's.
+    #[arg(long)]
+    pub resume: bool,
     /// Candidates of the first rung (Latin hypercube).
     #[arg(long, default_value_t = TuneOptions::default().candidates)]
     pub candidates: usize,
@@ -217,13 +222,24 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
     let scenario = Scenario::load(&args.scenario)?;
     let bars = Bars::on_terminal();
     let run = run_options(&args.cache_dir, &bars)?;
-    campaign::ensure_new_or_empty(&args.out, "tune writes into new folders only")?;
+    if !args.resume {
+        campaign::ensure_new_or_empty(
+            &args.out,
+            "tune writes into new folders only, unless --resume",
+        )?;
+    }
     let options = TuneOptions {
         candidates: args.candidates,
         first_trials: args.first_trials,
         seed: args.seed,
         target: args.target,
     };
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| Error::file(&args.out, format!("cannot create: {e}")))?;
+    let journal = TuneJournal::open(&args.out, &scenario, &options, args.resume)?;
+    if !journal.is_empty() {
+        eprintln!("resuming: {} evaluations were finished", journal.len());
+    }
     let only = args.target.only_method();
     let cells = scenario
         .cells()
@@ -231,12 +247,16 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
         .filter(|c| only.is_none_or(|m| c.method == m))
         .count();
     let evals = campaign::worker_pool(args.threads)?.install(|| {
-        tune(&scenario, &options, &run, &|rung, n, trials| {
-            eprintln!("rung {rung}: {n} candidates x {} trials", trials * cells);
-        })
+        tune(
+            &scenario,
+            &options,
+            &run,
+            &|rung, n, trials| {
+                eprintln!("rung {rung}: {n} candidates x {} trials", trials * cells);
+            },
+            Some(&journal),
+        )
     })?;
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| Error::file(&args.out, format!("cannot create: {e}")))?;
     report::write_tune(&args.out, &evals)?;
     pegtwin::files::write_atomically(
         &args.out.join("tune.csv"),
