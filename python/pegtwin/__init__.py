@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable, Dict, Optional, Union
+from typing import Any, Callable, Dict, Optional, Sequence, Union
 
 import numpy as np
 
@@ -28,11 +28,16 @@ PathLike = Union[str, "os.PathLike[str]"]
 __all__ = [
     "Manifold",
     "campaign",
+    "check",
+    "evaluate",
     "gym",
     "load_summary",
     "load_trials",
+    "merge",
     "register",
+    "rerun",
     "trial",
+    "tune",
 ]
 
 
@@ -148,6 +153,100 @@ def campaign(
         replays=replays,
         progress=progress,
     )
+
+
+def merge(
+    dirs: "Sequence[PathLike]",
+    out: PathLike,
+    resume: bool = False,
+    cache_dir: Optional[PathLike] = None,
+) -> str:
+    """Joins the result folders of a campaign's shards into ``out``, with the report (``pegtwin
+    merge``): the folder an unsharded run writes, its ``trials.jsonl`` byte for byte.
+
+    Returns:
+        ``out``, as a string.
+    """
+    return _pegtwin.merge([_path(d) for d in dirs], _path(out), resume=resume,
+                          cache_dir=_path(cache_dir))
+
+
+def check(
+    dir: PathLike,
+    baseline: Optional[PathLike] = None,
+    write_baseline: Optional[PathLike] = None,
+) -> Dict[str, Any]:
+    """The regression gate (``pegtwin check``) on a finished campaign folder.
+
+    With ``baseline``: ``{"passed": bool, "findings": [...]}``, one finding per compared
+    quantity (``cell``, ``quantity``, ``baseline``, ``now``, ``limit``, ``failed``). With
+    ``write_baseline``: the run's summary is written there as a baseline; returns ``{"written":
+    path, "cells": n}``.
+    """
+    return json.loads(_pegtwin.check_json(_path(dir), baseline=_path(baseline),
+                                          write_baseline=_path(write_baseline)))
+
+
+def rerun(
+    campaign: PathLike, cell: int, trial: int, cache_dir: Optional[PathLike] = None
+) -> Dict[str, Any]:
+    """One trial of a campaign again, on its own (``pegtwin rerun --json``): its record, the
+    campaign's bit for bit. ``campaign``: the scenario file or the results folder; ``cell`` and
+    ``trial`` numbered from 0 as in ``trials.jsonl``."""
+    return json.loads(_pegtwin.rerun_json(_path(campaign), cell, trial,
+                                          cache_dir=_path(cache_dir)))
+
+
+def tune(
+    scenario: PathLike,
+    out: PathLike,
+    candidates: Optional[int] = None,
+    first_trials: Optional[int] = None,
+    seed: Optional[int] = None,
+    target: str = "gains",
+    threads: Optional[int] = None,
+    cache_dir: Optional[PathLike] = None,
+    resume: bool = False,
+) -> "pandas.DataFrame":  # noqa: F821
+    """Gain tuning (``pegtwin tune``) into ``out``: a Latin hypercube and successive halving
+    (docs/campaigns.md). ``resume=True`` goes on with a search killed in ``out``, to the
+    uninterrupted one's result. Returns ``tune.csv`` as a DataFrame; the winner's scenario
+    snippet is in ``attrs["snippet"]``."""
+    import pandas as pd
+
+    done = json.loads(_pegtwin.tune_json(
+        _path(scenario), _path(out), candidates=candidates, first_trials=first_trials,
+        seed=seed, target=target, threads=threads, cache_dir=_path(cache_dir), resume=resume,
+    ))
+    frame = pd.read_csv(done["csv"])
+    frame.attrs["snippet"] = done["snippet"]
+    return frame
+
+
+def evaluate(
+    scenario: PathLike,
+    overrides: str = "",
+    trials: "range" = range(0, 1),
+    threads: Optional[int] = None,
+    cache_dir: Optional[PathLike] = None,
+) -> "pandas.DataFrame":  # noqa: F821
+    """Runs trials ``trials`` (indices from 0, as in ``trials.jsonl``) of every cell of a
+    scenario with the TOML ``overrides`` laid over it, and returns their records as
+    ``load_trials`` does.
+
+    ``overrides`` is scenario text whose tables are merged into the file's key by key, e.g.
+    ``"[gains.insert]\nstiffness = [1500, 1500, 2000, 50, 50, 50]"``. Every call meets the
+    same trial seeds (each record is the campaign's record of that trial), so candidates of an
+    outer search such as Optuna's are compared on the same hole offsets
+    (``python/examples/optuna_gains.py``).
+    """
+    import pandas as pd
+
+    if not isinstance(trials, range) or trials.step != 1:
+        raise ValueError(f"trials {trials!r}: expected a range of trial indices with step 1")
+    text = _pegtwin.evaluate_json(_path(scenario), overrides, trials.start, trials.stop,
+                                  threads=threads, cache_dir=_path(cache_dir))
+    return pd.DataFrame([_flat_record(json.loads(line)) for line in text.splitlines()])
 
 
 def _flat_record(record: Dict[str, Any]) -> Dict[str, Any]:

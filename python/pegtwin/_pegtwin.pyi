@@ -1,6 +1,6 @@
 """Type stubs of the Rust binding (``pegtwin._pegtwin``); use the ``pegtwin`` module's API."""
 
-from typing import Any, Callable, Dict, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -40,6 +40,32 @@ def register_json(
     restarts: Optional[int] = None,
     seed: Optional[int] = None,
     normal_k: Optional[int] = None,
+) -> str: ...
+def merge(
+    dirs: List[str], out: str, resume: bool = False, cache_dir: Optional[str] = None
+) -> str: ...
+def check_json(
+    dir: str, baseline: Optional[str] = None, write_baseline: Optional[str] = None
+) -> str: ...
+def rerun_json(campaign: str, cell: int, trial: int, cache_dir: Optional[str] = None) -> str: ...
+def tune_json(
+    scenario: str,
+    out: str,
+    candidates: Optional[int] = None,
+    first_trials: Optional[int] = None,
+    seed: Optional[int] = None,
+    target: str = "gains",
+    threads: Optional[int] = None,
+    cache_dir: Optional[str] = None,
+    resume: bool = False,
+) -> str: ...
+def evaluate_json(
+    scenario: str,
+    overrides: str,
+    start: int,
+    stop: int,
+    threads: Optional[int] = None,
+    cache_dir: Optional[str] = None,
 ) -> str: ...
 
 class ManifoldFile:

@@ -30,6 +30,8 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
+mod campaigns;
+
 /// The library's error as Python's: `ValueError` with the command line's message.
 fn py_err(e: Error) -> PyErr {
     match e {
@@ -438,6 +440,11 @@ fn _pegtwin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(trial_json, m)?)?;
     m.add_function(wrap_pyfunction!(campaign, m)?)?;
     m.add_function(wrap_pyfunction!(register_json, m)?)?;
+    m.add_function(wrap_pyfunction!(campaigns::merge, m)?)?;
+    m.add_function(wrap_pyfunction!(campaigns::check_json, m)?)?;
+    m.add_function(wrap_pyfunction!(campaigns::rerun_json, m)?)?;
+    m.add_function(wrap_pyfunction!(campaigns::tune_json, m)?)?;
+    m.add_function(wrap_pyfunction!(campaigns::evaluate_json, m)?)?;
     m.add_class::<ManifoldFile>()?;
     m.add_class::<Env>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -14,4 +14,5 @@ pub mod scenario;
 pub mod sharing;
 pub mod summary;
 pub mod tune;
+pub mod tuning;
 pub mod usage;

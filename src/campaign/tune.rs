@@ -412,7 +412,7 @@ impl TuneJournal {
             .collect::<Option<Vec<_>>>()
             .ok_or_else(|| {
                 Error::file(
-                    &dir.join(TUNE_JOURNAL),
+                    dir.join(TUNE_JOURNAL),
                     "holds an entry that is not an evaluation: choose another --out",
                 )
             })?;

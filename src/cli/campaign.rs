@@ -7,11 +7,12 @@ use pegtwin::campaign::check::{Baseline, compare, findings_table};
 use pegtwin::campaign::replays::Replays;
 use pegtwin::campaign::run::{self as campaign, CampaignOptions, RunOptions, Shard};
 use pegtwin::campaign::scenario::Scenario;
-use pegtwin::campaign::tune::{TuneJournal, TuneOptions, TuneTarget, tune};
+use pegtwin::campaign::tune::{TuneOptions, TuneTarget};
+use pegtwin::campaign::tuning::{best, tune_into};
 use pegtwin::campaign::usage::Stopwatch;
 use pegtwin::campaign::{report, summary};
 use pegtwin::choice::Choice;
-use pegtwin::error::{Error, Result};
+use pegtwin::error::Result;
 use pegtwin::method::manifold::cache;
 use std::path::{Path, PathBuf};
 
@@ -222,24 +223,12 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
     let scenario = Scenario::load(&args.scenario)?;
     let bars = Bars::on_terminal();
     let run = run_options(&args.cache_dir, &bars)?;
-    if !args.resume {
-        campaign::ensure_new_or_empty(
-            &args.out,
-            "tune writes into new folders only, unless --resume",
-        )?;
-    }
     let options = TuneOptions {
         candidates: args.candidates,
         first_trials: args.first_trials,
         seed: args.seed,
         target: args.target,
     };
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| Error::file(&args.out, format!("cannot create: {e}")))?;
-    let journal = TuneJournal::open(&args.out, &scenario, &options, args.resume)?;
-    if !journal.is_empty() {
-        eprintln!("resuming: {} evaluations were finished", journal.len());
-    }
     let only = args.target.only_method();
     let cells = scenario
         .cells()
@@ -247,26 +236,19 @@ pub fn tune_command(args: TuneArgs) -> Result<i32> {
         .filter(|c| only.is_none_or(|m| c.method == m))
         .count();
     let evals = campaign::worker_pool(args.threads)?.install(|| {
-        tune(
+        tune_into(
             &scenario,
             &options,
             &run,
+            &args.out,
+            args.resume,
+            &|n| eprintln!("resuming: {n} evaluations were finished"),
             &|rung, n, trials| {
                 eprintln!("rung {rung}: {n} candidates x {} trials", trials * cells);
             },
-            Some(&journal),
         )
     })?;
-    report::write_tune(&args.out, &evals)?;
-    pegtwin::files::write_atomically(
-        &args.out.join("tune.csv"),
-        &pegtwin::campaign::tune::evaluations_csv(&evals),
-    )?;
-    let last_rung = evals.last().map_or(0, |e| e.rung);
-    let best = evals
-        .iter()
-        .find(|e| e.rung == last_rung)
-        .expect("at least one evaluation");
+    let best = best(&evals);
     println!(
         "best: candidate {} at rung {}: {}/{} successes, mean peak Fz {:.1} N\n\n{}",
         best.candidate.id,

@@ -194,6 +194,31 @@ pub fn build_manifolds(scenario: &Scenario, options: &RunOptions) -> Result<usiz
     Ok(prepare(scenario, &cells, options)?.manifolds.len())
 }
 
+/// The trials numbered `trials` (from 0, as in `trials.jsonl`) of every cell of `scenario`, run
+/// on the current rayon pool: each the campaign's record of that trial, bit for bit (a trial is
+/// a pure function of its seed and the scenario), so that candidates of an outer search (gains
+/// overridden, [`Scenario::load_with`]) meet the same seeds. In cell-major order.
+pub fn run_trial_range(
+    scenario: &Scenario,
+    trials: std::ops::Range<usize>,
+    options: &RunOptions,
+) -> Result<Vec<TrialRecord>> {
+    if trials.is_empty() || trials.end > scenario.trials {
+        return Err(Error::Input(format!(
+            "trials {}..{}: expected a non-empty range within the scenario's {} trials per cell",
+            trials.start, trials.end, scenario.trials
+        )));
+    }
+    let all = CampaignTrials::of(scenario, Shard::WHOLE);
+    let specs: Vec<TrialSpec> = (0..all.cells())
+        .flat_map(|cell| trials.clone().map(move |t| (cell, t)))
+        .filter_map(|(cell, t)| all.spec(cell, t))
+        .collect();
+    let cells: Vec<usize> = (0..all.cells()).collect();
+    let prepared = prepare(scenario, &cells, options)?;
+    Ok(run_trials(&Plan::new(scenario, &prepared), &specs))
+}
+
 /// One trial of a scenario, ready to run on its own as its campaign runs it: cell `cell` and trial
 /// `trial`, numbered from 0 as in `trials.jsonl`. Only that trial's pair is prepared (its
 /// manifold loaded from the cache, or built into it). Its record is the campaign's, bit for bit:

@@ -161,6 +161,40 @@ impl Condition {
     }
 }
 
+/// A parse error's `line N: ...` of the merged scenario text said as the field it is on
+/// (`[gains.insert] stiffness: ...`): the merged text's lines are neither the file's nor the
+/// overrides'.
+fn name_merged_line(merged: &str, msg: &str) -> String {
+    let Some((n, rest)) = (msg.strip_prefix("line "))
+        .and_then(|m| m.split_once(": "))
+        .and_then(|(n, rest)| Some((n.parse::<usize>().ok()?, rest)))
+    else {
+        return msg.to_owned();
+    };
+    let lines: Vec<&str> = merged.lines().collect();
+    let Some(line) = n.checked_sub(1).and_then(|i| lines.get(i)) else {
+        return msg.to_owned();
+    };
+    let key = line.split('=').next().unwrap_or("").trim();
+    let section = (lines[..n - 1].iter().rev())
+        .map(|l| l.trim())
+        .find(|l| l.starts_with('['))
+        .map_or(String::new(), |s| format!("{s} "));
+    format!("{section}{key}: {rest}")
+}
+
+/// Lays `over` over `base`: tables merged key by key, any other value replaced.
+fn merge_tables(base: &mut toml::Table, over: toml::Table) {
+    for (key, value) in over {
+        match (base.get_mut(&key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_tables(b, o),
+            (_, v) => {
+                base.insert(key, v);
+            }
+        }
+    }
+}
+
 impl Scenario {
     /// Reads and validates a scenario file, loading its assemblies (relative to its folder).
     pub fn load(path: &Path) -> Result<Self> {
@@ -172,6 +206,34 @@ impl Scenario {
             .unwrap_or(Path::new("."));
         Self::parse_in(&text, dir).map_err(|e| match e {
             Error::Input(msg) => Error::file(path, msg),
+            other => other,
+        })
+    }
+
+    /// Reads a scenario file with the TOML text `overrides` laid over it: tables are merged key
+    /// by key and other values replaced, so `"[gains.insert]\nstiffness = [...]"` changes
+    /// that one field whatever else the file's `[gains.insert]` holds. The result is checked as
+    /// a scenario file is (a candidate's gains in an outer search, e.g. Optuna's).
+    pub fn load_with(path: &Path, overrides: &str) -> Result<Self> {
+        if overrides.trim().is_empty() {
+            return Self::load(path);
+        }
+        let text = crate::files::read_text(path)?;
+        let mut base: toml::Table =
+            toml::from_str(&text).map_err(|e| Error::file(path, e.to_string()))?;
+        let over: toml::Table =
+            toml::from_str(overrides).map_err(|e| Error::Input(format!("overrides: {e}")))?;
+        merge_tables(&mut base, over);
+        let merged = toml::to_string(&base).expect("a TOML table serialises");
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        Self::parse_in(&merged, dir).map_err(|e| match e {
+            Error::Input(msg) => Error::file(
+                path,
+                format!("with the overrides: {}", name_merged_line(&merged, &msg)),
+            ),
             other => other,
         })
     }
@@ -676,6 +738,36 @@ methods = ["manifold", "direct"]
         let e = Scenario::parse(&format!("{MINIMAL}\n[insertion]\nspeed_mm_per_s = 1e9\n"))
             .unwrap_err();
         assert!(e.to_string().contains("insertion.speed_mm_per_s"), "{e}");
+    }
+
+    /// Overrides merge into the file's tables key by key; a bad value is named by its field.
+    #[test]
+    fn overrides_merge_into_the_file_and_name_a_bad_field() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.toml");
+        std::fs::write(
+            &path,
+            "name = \"s\"\ntrials = 2\ngeometries = [\"cross\"]\nclearances_mm = [0.5]\n\
+             t_obs_s = [2.0]\nmethods = [\"manifold\"]\n[gains.insert]\n\
+             damping_ratio = [0.5, 0.5, 0.5, 0.5, 0.5, 0.5]\n",
+        )
+        .unwrap();
+        let s =
+            Scenario::load_with(&path, "[gains.insert]\nstiffness = [1, 2, 3, 4, 5, 6]").unwrap();
+        assert_eq!(
+            s.gains.insert.stiffness,
+            Some([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+        );
+        assert_eq!(
+            s.gains.insert.damping_ratio,
+            Some([0.5; 6]),
+            "the file's field kept"
+        );
+        assert_eq!(Scenario::load_with(&path, " ").unwrap().trials, 2);
+        let e = Scenario::load_with(&path, "[gains.insert]\nstiffness = 3").unwrap_err();
+        assert!(e.to_string().contains("[gains.insert] stiffness: "), "{e}");
+        let e = Scenario::load_with(&path, "[gains").unwrap_err();
+        assert!(e.to_string().contains("overrides: "), "{e}");
     }
 
     #[test]
