@@ -161,6 +161,14 @@ impl Condition {
     }
 }
 
+/// The folder of the scenario file `path`, which its relative paths start from (a bare file
+/// name's parent is "": the working folder).
+fn folder_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
 /// A parse error's `line N: ...` of the merged scenario text said as the field it is on
 /// (`[gains.insert] stiffness: ...`): the merged text's lines are neither the file's nor the
 /// overrides'.
@@ -199,12 +207,7 @@ impl Scenario {
     /// Reads and validates a scenario file, loading its assemblies (relative to its folder).
     pub fn load(path: &Path) -> Result<Self> {
         let text = crate::files::read_text(path)?;
-        // A bare file name's parent is "": the working folder.
-        let dir = path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        Self::parse_in(&text, dir).map_err(|e| match e {
+        Self::parse_in(&text, folder_of(path)).map_err(|e| match e {
             Error::Input(msg) => Error::file(path, msg),
             other => other,
         })
@@ -225,11 +228,7 @@ impl Scenario {
             toml::from_str(overrides).map_err(|e| Error::Input(format!("overrides: {e}")))?;
         merge_tables(&mut base, over);
         let merged = toml::to_string(&base).expect("a TOML table serialises");
-        let dir = path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        Self::parse_in(&merged, dir).map_err(|e| match e {
+        Self::parse_in(&merged, folder_of(path)).map_err(|e| match e {
             Error::Input(msg) => Error::file(
                 path,
                 format!("with the overrides: {}", name_merged_line(&merged, &msg)),
