@@ -62,7 +62,8 @@ pub enum ManifoldAction {
     /// Build the reference contact manifold of a pair in simulation (paper IV-B): the robot, under
     /// low stiffness, probes the hole at a known pose with the sampling primitives over many
     /// parallel episodes and records the poses where its estimated wrench says contact; the cloud
-    /// is downsampled by a voxel grid and given normals.
+    /// is downsampled by a voxel grid and given normals. With --scenario: every manifold a
+    /// scenario's campaign needs, into the cache (a job array's first step).
     Build(BuildArgs),
 }
 
