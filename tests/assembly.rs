@@ -748,3 +748,123 @@ fn frames_off_the_axis_or_tilted_are_refused_with_the_size_of_it() {
         }
     }
 }
+
+/// A round peg from MuJoCo primitives (a cylinder by `fromto`; a display sphere and a geom
+/// whose bits meet no hole geom left out) in a square hole of boxes placed through default
+/// classes: the clearance is the square's side less the diameter, as the polygonised cylinder
+/// has a vertex on each axis.
+#[test]
+fn mjcf_primitives_through_default_classes_make_a_pair() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("walls.xml"),
+        "<mujoco>\n<default><default class=\"wall\"><geom type=\"box\" size=\"0.02 0.0148 0.0125\"/>\
+         </default></default>\n</mujoco>\n",
+    )
+    .unwrap();
+    let model = "<mujoco>\n<include file=\"walls.xml\"/>\n<worldbody>\n\
+         <body name=\"peg\" pos=\"0 0 0.3\">\n\
+         <geom type=\"cylinder\" fromto=\"0 0 0.03 0 0 0\" size=\"0.0046\"/>\n\
+         <geom name=\"look\" type=\"sphere\" size=\"0.03\" contype=\"0\" conaffinity=\"0\"/>\n\
+         <geom name=\"bits\" type=\"box\" size=\"0.03 0.03 0.001\" pos=\"0 0 0.02\" contype=\"2\" conaffinity=\"2\"/>\n\
+         </body>\n\
+         <body name=\"hole\" childclass=\"wall\">\n\
+         <geom pos=\"0 0.0202 -0.0125\"/>\n<geom pos=\"0 -0.0202 -0.0125\"/>\n\
+         <geom pos=\"0.0202 0 -0.0125\" zaxis=\"0 0 1\" size=\"0.0148 0.0054\"/>\n\
+         <geom pos=\"-0.0202 0 -0.0125\" size=\"0.0148 0.0054\"/>\n\
+         <geom type=\"box\" size=\"0.02 0.02 0.005\" pos=\"0 0 -0.03\"/>\n\
+         </body>\n</worldbody>\n</mujoco>\n";
+    std::fs::write(d.join("env.xml"), model).unwrap();
+    let file = d.join("round.toml");
+    std::fs::write(
+        &file,
+        "name = \"round\"\n[peg]\nmjcf = \"env.xml\"\nbody = \"peg\"\n[hole]\nmjcf = \"env.xml\"\nbody = \"hole\"\n",
+    )
+    .unwrap();
+    let round = load(&file).unwrap();
+    // Square 2 x 5.4 mm, diameter 9.2 mm: 10.8 - 9.2 = 1.6 mm.
+    assert!(
+        (round.report.clearance_min_mm - 1.6).abs() < 1e-4,
+        "{:?}",
+        round.report
+    );
+    assert!(
+        round.report.peg.max_deviation_mm <= 0.0025,
+        "{:?}",
+        round.report.peg
+    );
+    assert!(
+        round.report.peg.max_deviation_mm > 0.0,
+        "{:?}",
+        round.report.peg
+    );
+    assert!((round.report.insertion_depth_mm - 25.0).abs() < 1e-3);
+    let warned = round.report.warnings.join("\n");
+    assert!(
+        warned.contains("<geom name=\"bits\"> (line 7)") && warned.contains("left out"),
+        "{warned}"
+    );
+    assert!(!warned.contains("look"), "{warned}");
+}
+
+/// What pegtwin does not read is refused by element, attribute and line, with exit 2.
+#[test]
+fn mjcf_refusals_name_the_element_attribute_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (body, expected) in [
+        (
+            "<geom type=\"plane\" size=\"1 1 1\"/>",
+            &["<geom> (line 3)", "type=\"plane\"", "not a part"][..],
+        ),
+        (
+            "<geom name=\"g\" type=\"box\" size=\"1 1 1\" quat=\"1 0 0 0\" zaxis=\"0 0 1\"/>",
+            &["<geom name=\"g\"> (line 3)", "quat and zaxis"][..],
+        ),
+        (
+            "<geom class=\"nope\" type=\"box\" size=\"1 1 1\"/>",
+            &["(line 3)", "class=\"nope\""][..],
+        ),
+        (
+            "<geom type=\"sphere\" fromto=\"0 0 0 0 0 1\" size=\"1\"/>",
+            &["(line 3)", "fromto=", "not a sphere"][..],
+        ),
+        (
+            "<geom type=\"box\" mesh=\"m\" size=\"1 1 1\"/>",
+            &["(line 3)", "mesh=\"m\"", "fitted to a mesh"][..],
+        ),
+        (
+            "<geom type=\"box\" size=\"1 1 x\"/>",
+            &["(line 3)", "size=\"1 1 x\"", "'x' is not a number"][..],
+        ),
+        (
+            "<geom type=\"capsule\" xyaxes=\"1 0 0 2 0 0\" size=\"1 2\"/>",
+            &["(line 3)", "xyaxes=", "parallel"][..],
+        ),
+        (
+            "<replicate count=\"2\"><geom type=\"box\" size=\"1 1 1\"/></replicate>",
+            &["<replicate> (line 3)", "not supported"][..],
+        ),
+    ] {
+        let model = format!(
+            "<mujoco>\n<worldbody><body name=\"peg\">\n{body}\n</body></worldbody>\n</mujoco>\n"
+        );
+        std::fs::write(d.join("env.xml"), model).unwrap();
+        let out = pegtwin(&[
+            "assembly",
+            "mjcf",
+            d.join("env.xml").to_str().unwrap(),
+            "--body",
+            "peg",
+        ]);
+        assert_eq!(out.status.code(), Some(2), "{body}");
+        let err = stderr(&out);
+        for e in expected {
+            assert!(
+                err.contains(e) && err.contains("env.xml"),
+                "{body}: {e}: {err}"
+            );
+        }
+    }
+}

@@ -1,4 +1,5 @@
-//! `pegtwin assembly check`: an assembly file loaded and measured, printed.
+//! `pegtwin assembly check`: an assembly file loaded and measured, printed; `pegtwin assembly
+//! mjcf`: the collision geoms pegtwin reads from a MuJoCo model's body.
 
 use clap::Subcommand;
 use pegtwin::error::Result;
@@ -18,6 +19,16 @@ pub enum AssemblyAction {
         #[arg(long)]
         json: bool,
     },
+    /// Print, as JSON lines, the collision geoms pegtwin reads from one body of a MuJoCo model
+    /// (MJCF): each geom's type, MuJoCo size, pose in the body's frame (pos, quat w x y z, model
+    /// units) and collision bits, and a mesh geom's vertices in the body's frame.
+    Mjcf {
+        /// The MJCF file.
+        file: PathBuf,
+        /// The body whose geoms (and its child bodies') make the part.
+        #[arg(long)]
+        body: String,
+    },
 }
 
 pub fn assembly_command(action: AssemblyAction) -> Result<i32> {
@@ -29,6 +40,15 @@ pub fn assembly_command(action: AssemblyAction) -> Result<i32> {
                 println!("{text}");
             } else {
                 print_report(&report);
+            }
+            Ok(0)
+        }
+        AssemblyAction::Mjcf { file, body } => {
+            for geom in pegtwin::twin::assembly::mjcf::report(&file, &body)? {
+                println!(
+                    "{}",
+                    serde_json::to_string(&geom).expect("report serialises")
+                );
             }
             Ok(0)
         }

@@ -25,14 +25,14 @@
 
 pub mod measure;
 pub mod mjcf;
+mod mjcf_part;
 mod robot;
 pub use robot::RobotReport;
 
 use crate::error::{Error, Result};
 use crate::pose::rotation_rpy;
-use crate::twin::geometry::mesh::{MeshUnits, load_solid, mesh_part, read_mesh_scaled};
-use crate::twin::geometry::planar::rect;
-use crate::twin::geometry::solid::{ConvexPiece, Solid, ZPlane};
+use crate::twin::geometry::mesh::{MeshUnits, load_solid};
+use crate::twin::geometry::solid::{ConvexPiece, Solid};
 use crate::twin::geometry::{self, PartPair};
 use crate::twin::robot::spec::RobotSpec;
 use measure::{Fit, FitError, Seat, measure_fit};
@@ -185,8 +185,14 @@ pub fn load(path: &Path) -> Result<Assembly> {
         Error::Input(msg) => Error::file(path, msg),
         other => other,
     };
-    let peg = load_part("peg", &file.peg, dir, file.clearance_mm).map_err(in_file)?;
-    let hole = load_part("hole", &file.hole, dir, file.clearance_mm).map_err(in_file)?;
+    let sources = [&file.peg, &file.hole].map(|e| mjcf_source(e, dir));
+    let (peg_geoms, hole_geoms, pair_warnings) =
+        mjcf_part::paired_geoms(sources[0].as_ref(), sources[1].as_ref())?;
+    let mut peg =
+        load_part("peg", &file.peg, dir, file.clearance_mm, peg_geoms).map_err(in_file)?;
+    let hole =
+        load_part("hole", &file.hole, dir, file.clearance_mm, hole_geoms).map_err(in_file)?;
+    peg.warnings.extend(pair_warnings);
     check_frames(&peg.solid, &hole.solid).map_err(|msg| Error::file(path, msg))?;
     let max_depth = -hole.solid.bounds().0.z + peg.solid.bounds().1.z;
     let fit =
@@ -367,14 +373,23 @@ struct ReadPart {
     warnings: Vec<String>,
 }
 
-/// Loads a part (mesh, built-in or MJCF body) and moves it into its frame.
+/// Where an entry's MJCF geoms come from, if it names a model.
+fn mjcf_source<'a>(e: &'a PartEntry, dir: &Path) -> Option<mjcf_part::Source<'a>> {
+    Some(mjcf_part::Source {
+        file: dir.join(e.mjcf.as_ref()?),
+        body: e.body.as_deref()?,
+    })
+}
+
+/// Loads a part (mesh, built-in or the MJCF body's `geoms`) and moves it into its frame.
 fn load_part(
     section: &str,
     e: &PartEntry,
     dir: &Path,
     clearance_mm: Option<f64>,
+    geoms: Option<Vec<mjcf::Geom>>,
 ) -> Result<LoadedPart> {
-    let read = read_part(section, e, dir, clearance_mm)?;
+    let read = read_part(section, e, dir, clearance_mm, geoms)?;
     let solid = Solid {
         pieces: move_into_frame(&read.solid.pieces, e),
         boundary: read
@@ -407,6 +422,7 @@ fn read_part(
     e: &PartEntry,
     dir: &Path,
     clearance_mm: Option<f64>,
+    geoms: Option<Vec<mjcf::Geom>>,
 ) -> Result<ReadPart> {
     let part = |solid, source, deviations, warnings| ReadPart {
         solid,
@@ -445,69 +461,12 @@ fn read_part(
         (None, None) => {
             let file = dir.join(e.mjcf.as_ref().expect("checked: one source"));
             let body = e.body.as_deref().expect("checked: mjcf comes with body");
-            let (solid, deviations) = mjcf_solid(&file, body, e.units)?;
+            let geoms = geoms.expect("an MJCF part's geoms are read with the other part's");
+            let read = mjcf_part::solid(&file, geoms, e.units)?;
             let source = format!("{} body {body}", file.display());
-            part(solid, source, deviations, Vec::new())
+            part(read.solid, source, read.deviations, Vec::new())
         }
     })
-}
-
-/// The geoms of an MJCF body as convex parts in the body's frame (lengths in `units`, metres
-/// when not given, as MuJoCo models are), with each mesh part's deviation from its surface.
-fn mjcf_solid(
-    file: &Path,
-    body: &str,
-    units: Option<MeshUnits>,
-) -> Result<(Solid, Vec<(PathBuf, f64)>)> {
-    let units = units.unwrap_or(MeshUnits::M);
-    let s = units.scale();
-    let mut pieces = Vec::new();
-    let mut deviations = Vec::new();
-    for g in mjcf::body_geoms(file, body)? {
-        let place = Isometry3::from_parts(
-            Translation3::from(g.body_t_geom.translation.vector * s),
-            g.body_t_geom.rotation,
-        );
-        match g.shape {
-            mjcf::GeomShape::Mesh { file: mesh, scale } => {
-                let words = format!("{} x scale {scale:?}", units.in_words());
-                let mut soup = read_mesh_scaled(&mesh, &(scale * s), &words)?;
-                for v in &mut soup.vertices {
-                    *v = place * *v;
-                }
-                let part = mesh_part(&soup, &mesh)?;
-                pieces.extend(part.pieces);
-                deviations.push((mesh, part.deviation_m));
-            }
-            mjcf::GeomShape::Box { half_extents } => {
-                pieces.push(box_piece(&(half_extents * s), &place, file, body)?);
-            }
-        }
-    }
-    let solid = Solid {
-        pieces,
-        boundary: None,
-    };
-    Ok((solid, deviations))
-}
-
-/// A box of half-extents `h` (m) placed at `place`: the slab over its rectangle, moved.
-fn box_piece(
-    h: &nalgebra::Vector3<f64>,
-    place: &Isometry3<f64>,
-    file: &Path,
-    body: &str,
-) -> Result<ConvexPiece> {
-    if !h.iter().all(|v| *v > 0.0) {
-        let msg = format!("body {body}: a box geom of half-extents {h:?}: expected all above 0");
-        return Err(Error::file(file, msg));
-    }
-    let slab = ConvexPiece::slab(
-        &rect(-h.x, -h.y, h.x, h.y),
-        ZPlane::flat(-h.z),
-        ZPlane::flat(h.z),
-    );
-    Ok(slab.transformed(place))
 }
 
 fn is_identity(e: &PartEntry) -> bool {

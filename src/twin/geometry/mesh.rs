@@ -159,6 +159,18 @@ pub fn read_mesh_scaled(
     metres_per_unit: &nalgebra::Vector3<f64>,
     unit_words: &str,
 ) -> Result<TriangleSoup> {
+    let mut soup = read_mesh_as_written(path)?;
+    let s = metres_per_unit;
+    for v in &mut soup.vertices {
+        *v = P3::new(v.x * s.x, v.y * s.y, v.z * s.z);
+    }
+    check_in_range(&soup, path, unit_words)?;
+    Ok(soup)
+}
+
+/// Reads an STL or OBJ file in the file's own units (checked for finite vertices and valid
+/// triangles; [`check_in_range`] once it is in metres).
+pub fn read_mesh_as_written(path: &Path) -> Result<TriangleSoup> {
     let (raw, triangles) = read_raw_mesh(path)?;
     if triangles.is_empty() {
         return Err(Error::file(path, "the mesh has no triangles"));
@@ -169,26 +181,31 @@ pub fn read_mesh_scaled(
     if triangles.iter().flatten().any(|&i| i as usize >= raw.len()) {
         return Err(Error::file(path, "a triangle refers to a missing vertex"));
     }
-    let s = metres_per_unit;
     let vertices: Vec<P3> = raw
         .iter()
-        .map(|v| P3::new(v[0] as f64 * s.x, v[1] as f64 * s.y, v[2] as f64 * s.z))
+        .map(|v| P3::new(v[0] as f64, v[1] as f64, v[2] as f64))
         .collect();
+    Ok(TriangleSoup {
+        vertices,
+        triangles,
+    })
+}
+
+/// A mesh in metres must lie within the coordinate limit, or its units are wrong
+/// (`unit_words`: how it was read).
+pub fn check_in_range(soup: &TriangleSoup, path: &Path, unit_words: &str) -> Result<()> {
     let limit = crate::pose::MAX_COORDINATE_M;
-    if let Some(far) = vertices.iter().find(|v| v.coords.amax() > limit) {
-        return Err(Error::file(
+    match soup.vertices.iter().find(|v| v.coords.amax() > limit) {
+        Some(far) => Err(Error::file(
             path,
             format!(
                 "vertex ({:.4}, {:.4}, {:.4}) m lies beyond +-{limit} m: are the units right \
                  (read as {})?",
                 far.x, far.y, far.z, unit_words
             ),
-        ));
+        )),
+        None => Ok(()),
     }
-    Ok(TriangleSoup {
-        vertices,
-        triangles,
-    })
 }
 
 /// A mesh file's vertices, in the file's units, and its triangles (vertex indices).

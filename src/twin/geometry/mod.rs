@@ -9,6 +9,7 @@ pub mod mesh;
 pub mod planar;
 pub mod print;
 pub mod profile;
+pub mod round;
 pub mod solid;
 pub mod stack;
 
