@@ -8,7 +8,7 @@
 
 use crate::error::{Error, Result};
 use std::io::{Read, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Largest text input read, bytes: scenarios, URDF, MJCF and assembly files, baselines, a
 /// campaign's `campaign.json` (64 MiB).
@@ -177,6 +177,22 @@ pub fn ensure_writable(path: &Path) -> Result<()> {
     std::fs::write(&probe, b"")
         .and_then(|()| std::fs::remove_file(&probe))
         .map_err(|e| Error::file(path, format!("cannot write: {e}")))
+}
+
+/// The cache folder every command and the Python package use: `given` (`--cache-dir`), else
+/// `$XDG_CACHE_HOME/pegtwin`, else `~/.cache/pegtwin`.
+pub fn cache_folder(given: Option<&Path>) -> Result<PathBuf> {
+    if let Some(d) = given {
+        return Ok(d.to_path_buf());
+    }
+    if let Some(x) = std::env::var_os("XDG_CACHE_HOME").filter(|v| !v.is_empty()) {
+        return Ok(Path::new(&x).join("pegtwin"));
+    }
+    std::env::var_os("HOME")
+        .map(|h| Path::new(&h).join(".cache").join("pegtwin"))
+        .ok_or_else(|| {
+            Error::Input("no cache folder: set --cache-dir, XDG_CACHE_HOME or HOME".into())
+        })
 }
 
 #[cfg(test)]

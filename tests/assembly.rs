@@ -868,3 +868,38 @@ fn mjcf_refusals_name_the_element_attribute_and_line() {
         }
     }
 }
+
+/// `decompose = "coacd"` comes with one mesh file and the pair's design clearance.
+#[test]
+fn decompose_entries_are_checked_by_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (text, expected) in [
+        (
+            "name = \"p\"\n[peg]\nmesh = \"pin.stl\"\nunits = \"mm\"\ndecompose = \"coacd\"\n[hole]\nmesh = \"h.stl\"\nunits = \"mm\"\n",
+            "clearance_mm: decompose = \"coacd\" needs",
+        ),
+        (
+            "name = \"p\"\nclearance_mm = 0.5\n[peg]\nmesh = \"parts/\"\nunits = \"mm\"\ndecompose = \"coacd\"\n[hole]\nmesh = \"h.stl\"\nunits = \"mm\"\n",
+            "peg.decompose: only for mesh = \"ONE FILE",
+        ),
+        (
+            "name = \"p\"\nclearance_mm = 0.5\n[peg]\nmesh = \"pin.stl\"\nunits = \"mm\"\n[hole]\nmesh = \"h.stl\"\nunits = \"mm\"\n",
+            "clearance_mm = 0.5: only for built-in parts and decompose",
+        ),
+        (
+            "name = \"p\"\nclearance_mm = 0.5\n[peg]\nmesh = \"pin.stl\"\nunits = \"mm\"\ndecompose = \"vhacd\"\n[hole]\nmesh = \"h.stl\"\nunits = \"mm\"\n",
+            "line 6: unknown variant `vhacd`, expected `coacd`",
+        ),
+    ] {
+        let file = d.join("a.toml");
+        std::fs::write(&file, text).unwrap();
+        let out = pegtwin(&["assembly", "check", file.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{text}");
+        let err = stderr(&out);
+        assert!(
+            err.contains(expected) && err.contains("a.toml"),
+            "{expected}: {err}"
+        );
+    }
+}

@@ -2,10 +2,13 @@
 //! mjcf`: the collision geoms pegtwin reads from a MuJoCo model's body.
 
 use clap::Subcommand;
-use pegtwin::error::Result;
+use pegtwin::error::{Error, Result};
+use pegtwin::twin::assembly::decompose;
 use pegtwin::twin::assembly::measure::Seat;
 use pegtwin::twin::assembly::{AssemblyReport, PartReport, load};
-use std::path::PathBuf;
+use pegtwin::twin::geometry::check_clearance;
+use pegtwin::twin::geometry::mesh::MeshUnits;
+use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
 pub enum AssemblyAction {
@@ -22,6 +25,28 @@ pub enum AssemblyAction {
     /// Print, as JSON lines, the collision geoms pegtwin reads from one body of a MuJoCo model
     /// (MJCF): each geom's type, MuJoCo size, pose in the body's frame (pos, quat w x y z, model
     /// units) and collision bits, and a mesh geom's vertices in the body's frame.
+    /// Cut one part that is neither convex nor a stack of extrusions (fillets, drafts, slanted
+    /// faces) into convex parts with CoACD (`pip install coacd`; `$PEGTWIN_PYTHON` names the
+    /// interpreter), its threshold chosen so that the parts stand at most a quarter of the
+    /// clearance off the surface (measured, refused above); written as STL in mm for
+    /// `mesh = "DIR"`, `units = "mm"`.
+    Decompose {
+        /// The part: one STL or OBJ file.
+        part: PathBuf,
+        /// The part's length unit: mm or m.
+        #[arg(long, value_parser = parse_units)]
+        units: MeshUnits,
+        /// The pair's clearance, mm (diametral).
+        #[arg(long = "clearance-mm")]
+        clearance_mm: f64,
+        /// The folder the convex parts are written to (part_000.stl, ...).
+        #[arg(long)]
+        out: PathBuf,
+        /// Where decompositions are cached (default: $XDG_CACHE_HOME/pegtwin, else
+        /// ~/.cache/pegtwin).
+        #[arg(long = "cache-dir")]
+        cache_dir: Option<PathBuf>,
+    },
     Mjcf {
         /// The MJCF file.
         file: PathBuf,
@@ -43,6 +68,13 @@ pub fn assembly_command(action: AssemblyAction) -> Result<i32> {
             }
             Ok(0)
         }
+        AssemblyAction::Decompose {
+            part,
+            units,
+            clearance_mm,
+            out,
+            cache_dir,
+        } => decompose(&part, units, clearance_mm, &out, cache_dir.as_deref()),
         AssemblyAction::Mjcf { file, body } => {
             for geom in pegtwin::twin::assembly::mjcf::report(&file, &body)? {
                 println!(
@@ -53,6 +85,47 @@ pub fn assembly_command(action: AssemblyAction) -> Result<i32> {
             Ok(0)
         }
     }
+}
+
+fn parse_units(text: &str) -> std::result::Result<MeshUnits, String> {
+    match text {
+        "mm" => Ok(MeshUnits::Mm),
+        "m" => Ok(MeshUnits::M),
+        other => Err(format!("'{other}': expected mm or m")),
+    }
+}
+
+fn decompose(
+    part: &Path,
+    units: MeshUnits,
+    clearance_mm: f64,
+    out: &Path,
+    cache_dir: Option<&Path>,
+) -> Result<i32> {
+    let clearance_m = clearance_mm * 1e-3;
+    check_clearance(clearance_m).map_err(|e| Error::Input(format!("--clearance-mm: {e}")))?;
+    if out.exists() && std::fs::read_dir(out).map_or(true, |mut d| d.next().is_some()) {
+        return Err(Error::file(out, "--out: expected a new or empty folder"));
+    }
+    let cache = pegtwin::files::cache_folder(cache_dir)?;
+    let max_deviation_m = clearance_m * pegtwin::twin::assembly::MAX_DEVIATION_OF_CLEARANCE;
+    let cut = decompose::decompose(part, units, max_deviation_m, &cache)?;
+    let written = decompose::write_parts(&cut.pieces, out)?;
+    println!(
+        "{}: {} convex parts (CoACD threshold {:.5}{}), {:.4} mm off its surface (at most {:.4} mm, a quarter of {clearance_mm} mm)",
+        part.display(),
+        written.len(),
+        cut.threshold,
+        if cut.cached { ", cached" } else { "" },
+        cut.deviation_m * 1e3,
+        max_deviation_m * 1e3
+    );
+    println!(
+        "written to {} in mm: in an assembly file, mesh = \"{}\" with units = \"mm\"",
+        out.display(),
+        out.display()
+    );
+    Ok(0)
 }
 
 fn print_part(role: &str, p: &PartReport) {

@@ -147,20 +147,10 @@ pub trait BuildProgress: Sync {
 /// No progress display.
 impl BuildProgress for () {}
 
-/// The cache folder every command and the Python package use: `given` (`--cache-dir`), else
-/// `$XDG_CACHE_HOME/pegtwin`, else `~/.cache/pegtwin`.
+/// The cache folder every command and the Python package use (see
+/// [`crate::files::cache_folder`]).
 pub fn folder(given: Option<&Path>) -> Result<PathBuf> {
-    if let Some(d) = given {
-        return Ok(d.to_path_buf());
-    }
-    if let Some(x) = std::env::var_os("XDG_CACHE_HOME").filter(|v| !v.is_empty()) {
-        return Ok(Path::new(&x).join("pegtwin"));
-    }
-    std::env::var_os("HOME")
-        .map(|h| Path::new(&h).join(".cache").join("pegtwin"))
-        .ok_or_else(|| {
-            Error::Input("no cache folder: set --cache-dir, XDG_CACHE_HOME or HOME".into())
-        })
+    crate::files::cache_folder(given)
 }
 
 /// Where the manifold of `pair` made by `recipe` is cached in `dir`: an assembly's pair adds the

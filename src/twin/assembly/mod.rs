@@ -23,6 +23,7 @@
 //! of the measured clearance off its surface (a non-convex part in a convex-part folder) is
 //! refused by name rather than simulated as a fatter part.
 
+pub mod decompose;
 pub mod measure;
 pub mod mjcf;
 mod mjcf_part;
@@ -51,7 +52,7 @@ const TIP_TOLERANCE_M: f64 = 1e-5;
 /// A part's size must lie in this range (m) for its units to be believed.
 const PART_SIZE_RANGE_M: (f64, f64) = (1e-3, 1.0);
 /// A part standing further off its surface than this fraction of the clearance is refused.
-const MAX_DEVIATION_OF_CLEARANCE: f64 = 0.25;
+pub const MAX_DEVIATION_OF_CLEARANCE: f64 = 0.25;
 /// A part whose hull stands this far off its surface is not convex, whatever the clearance, m.
 const NON_CONVEX_M: f64 = 0.05e-3;
 /// The peg's axis may stand this fraction of the clearance off the hole's, as the wall gaps
@@ -84,6 +85,8 @@ struct PartEntry {
     mjcf: Option<PathBuf>,
     body: Option<String>,
     units: Option<MeshUnits>,
+    /// `"coacd"`: cut a single mesh into convex parts with CoACD ([`decompose`]).
+    decompose: Option<Decomposer>,
     #[serde(default)]
     frame_xyz_mm: [f64; 3],
     #[serde(default)]
@@ -94,6 +97,13 @@ struct PartEntry {
     mass_kg: Option<f64>,
     /// Hole only: where a through hole counts the peg as inserted, mm below the mouth.
     success_depth_mm: Option<f64>,
+}
+
+/// How a single mesh that is neither convex nor a stack of extrusions is cut.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum Decomposer {
+    Coacd,
 }
 
 /// One part as loaded, in its own frame.
@@ -288,15 +298,24 @@ fn check_entries(file: &AssemblyFile) -> std::result::Result<(), String> {
         ));
     }
     let builtin = file.peg.builtin.is_some() || file.hole.builtin.is_some();
+    let decompose = file.peg.decompose.is_some() || file.hole.decompose.is_some();
     match file.clearance_mm {
-        Some(c) if !builtin => {
+        Some(c) if !builtin && !decompose => {
             return Err(format!(
-                "clearance_mm = {c}: only for built-in parts; a mesh pair's clearance is measured"
+                "clearance_mm = {c}: only for built-in parts and decompose = \"coacd\"; a mesh \
+                 pair's clearance is measured"
             ));
         }
         Some(c) => geometry::check_clearance(c * 1e-3).map_err(|e| format!("clearance_mm: {e}"))?,
         None if builtin => {
             return Err("clearance_mm: a built-in part needs the clearance to build it at".into());
+        }
+        None if decompose => {
+            return Err(
+                "clearance_mm: decompose = \"coacd\" needs the pair's design clearance (its \
+                 threshold follows it; the measured clearance then checks the parts)"
+                    .into(),
+            );
         }
         None => {}
     }
@@ -317,6 +336,17 @@ fn check_entry(section: &str, e: &PartEntry) -> std::result::Result<(), String> 
     if e.mesh.is_some() && e.units.is_none() {
         return Err(format!(
             "{section}.units: missing: say \"mm\" or \"m\" (mesh files carry no unit)"
+        ));
+    }
+    let one_file = |m: &PathBuf| {
+        m.extension().is_some_and(|x| {
+            ["stl", "obj"].contains(&x.to_ascii_lowercase().to_str().unwrap_or(""))
+        })
+    };
+    if e.decompose.is_some() && !e.mesh.as_ref().is_some_and(one_file) {
+        return Err(format!(
+            "{section}.decompose: only for mesh = \"ONE FILE.stl|obj\" (a folder's parts are \
+             convex already)"
         ));
     }
     if e.mjcf.is_some() != e.body.is_some() {
@@ -431,6 +461,27 @@ fn read_part(
         warnings,
     };
     Ok(match (&e.mesh, &e.builtin) {
+        (Some(mesh), _) if e.decompose.is_some() => {
+            let path = dir.join(mesh);
+            let units = e.units.expect("checked: a mesh has units");
+            let c = clearance_mm.expect("checked: decompose comes with a clearance") * 1e-3;
+            let cache = crate::files::cache_folder(None)?;
+            let cut = decompose::decompose(&path, units, c * MAX_DEVIATION_OF_CLEARANCE, &cache)?;
+            let warning = format!(
+                "{}: cut by CoACD into {} convex parts at threshold {:.5}, {:.4} mm off its surface{}",
+                path.display(),
+                cut.pieces.len(),
+                cut.threshold,
+                cut.deviation_m * 1e3,
+                if cut.cached { " (cached)" } else { "" }
+            );
+            let solid = Solid {
+                pieces: cut.pieces,
+                boundary: None,
+            };
+            let source = path.display().to_string();
+            part(solid, source, vec![(path, cut.deviation_m)], vec![warning])
+        }
         (Some(mesh), _) => {
             let path = dir.join(mesh);
             let units = e.units.expect("checked: a mesh has units");

@@ -8,7 +8,7 @@ use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
 use parry3d::math::Vector as V3f;
 use parry3d::query::PointQuery;
-use parry3d::shape::TriMesh;
+use parry3d::shape::{TriMesh, TriMeshFlags};
 use parry3d::transformation::vhacd::{VHACD, VHACDParameters};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -274,6 +274,41 @@ fn trimesh(soup: &TriangleSoup, path: &Path) -> Result<TriMesh> {
         .map_err(|e| Error::file(path, format!("not a usable triangle mesh: {e}")))
 }
 
+/// How far convex `pieces` that approximate the closed part in `soup` (read from `file`; pieces
+/// that may overlap and need not share their faces, as an approximate decomposition's) stand
+/// off its surface, metres: the farthest of the pieces' surface samples that lie outside the
+/// part (inside, a sample is on a face between pieces, which nothing touches), and the farthest
+/// of the part's vertices outside every piece.
+pub fn approximation_deviation(
+    pieces: &[ConvexPiece],
+    soup: &TriangleSoup,
+    file: &Path,
+) -> Result<f64> {
+    let v: Vec<V3f> = soup
+        .vertices
+        .iter()
+        .map(|p| V3f::new(p.x as f32, p.y as f32, p.z as f32))
+        .collect();
+    let flags = TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES;
+    let solid = TriMesh::with_flags(v, soup.triangles.clone(), flags)
+        .map_err(|e| Error::file(file, format!("not a usable closed triangle mesh: {e}")))?;
+    let outward = pieces
+        .iter()
+        .flat_map(ConvexPiece::surface_samples)
+        .map(|p| {
+            let at = V3f::new(p.x as f32, p.y as f32, p.z as f32);
+            let proj = solid.project_local_point(at, false);
+            if proj.is_inside {
+                0.0
+            } else {
+                (proj.point - at).length() as f64
+            }
+        })
+        .fold(0.0, f64::max);
+    let planes: Vec<FacePlanes> = pieces.iter().map(FacePlanes::of).collect();
+    Ok(outward.max(uncovered(&planes, soup)))
+}
+
 /// Largest distance from any of `points` to the surface of `surface`, metres.
 fn max_distance_to_surface(points: impl Iterator<Item = P3>, surface: &TriMesh) -> f64 {
     points
@@ -438,8 +473,12 @@ fn surface_deviation(pieces: &[ConvexPiece], soup: &TriangleSoup, surface: &TriM
         }),
         surface,
     );
-    let inward = soup
-        .vertices
+    outward.max(uncovered(&planes, soup))
+}
+
+/// The farthest of the part's vertices outside every piece, metres.
+fn uncovered(planes: &[FacePlanes], soup: &TriangleSoup) -> f64 {
+    soup.vertices
         .iter()
         .map(|p| {
             planes
@@ -447,8 +486,7 @@ fn surface_deviation(pieces: &[ConvexPiece], soup: &TriangleSoup, surface: &TriM
                 .map(|pl| pl.outside(p).max(0.0))
                 .fold(f64::INFINITY, f64::min)
         })
-        .fold(0.0, f64::max);
-    outward.max(inward)
+        .fold(0.0, f64::max)
 }
 
 /// A sample this close to another piece (or inside it) lies on a face the two share, metres.

@@ -1,0 +1,82 @@
+"""`pegtwin assembly decompose` and `decompose = "coacd"`: a filleted rounded-cross pin (curved
+and slanted faces: neither convex nor a stack of extrusions) goes from one STL through CoACD
+to a trial, its parts within a quarter of the clearance of its surface; a missing CoACD or
+Python is refused by name."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import pins
+
+CLEARANCE_MM = 1.0
+
+
+def run(cli: Path, *args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([str(cli), *args], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})})
+
+
+@pytest.fixture(scope="module")
+def parts(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("pin")
+    pins.filleted_cross_pin(d / "pin.stl")
+    pins.cross_hole_block(d / "hole.stl", CLEARANCE_MM)
+    return d
+
+
+def test_a_filleted_pin_goes_from_one_stl_through_coacd_to_a_trial(cli: Path, parts: Path) -> None:
+    cache = parts / "cache"
+    env = {"PEGTWIN_PYTHON": sys.executable, "XDG_CACHE_HOME": str(cache)}
+    o = run(cli, "assembly", "decompose", str(parts / "pin.stl"), "--units", "mm",
+            "--clearance-mm", str(CLEARANCE_MM), "--out", str(parts / "pin_parts"), env=env)
+    assert o.returncode == 0, o.stderr
+    deviation = float(re.search(r"([0-9.]+) mm off its surface", o.stdout).group(1))
+    assert deviation <= CLEARANCE_MM / 4, o.stdout
+    written = sorted((parts / "pin_parts").glob("part_*.stl"))
+    assert len(written) > 1, o.stdout
+
+    (parts / "pin.toml").write_text(
+        'name = "filleted-cross"\nclearance_mm = 1.0\n'
+        '[peg]\nmesh = "pin.stl"\nunits = "mm"\ndecompose = "coacd"\n'
+        '[hole]\nmesh = "hole.stl"\nunits = "mm"\n'
+    )
+    o = run(cli, "assembly", "check", str(parts / "pin.toml"), "--json", env=env)
+    assert o.returncode == 0, o.stderr
+    report = json.loads(o.stdout)
+    assert report["peg"]["pieces"] == len(written)
+    assert report["peg"]["max_deviation_mm"] <= report["clearance_min_mm"] / 4
+    assert abs(report["clearance_min_mm"] - CLEARANCE_MM) < 0.2, report
+    assert report["seat"] == "tip_on_floor"
+    assert any("(cached)" in w for w in report["warnings"]), report["warnings"]
+
+    o = run(cli, "trial", "--assembly", str(parts / "pin.toml"), "--method", "direct",
+            "--seed", "1", "--json", env=env)
+    assert o.returncode == 0, o.stderr
+    record = json.loads(o.stdout)
+    assert record["outcome"] in ("success", "failure"), record
+
+
+def test_a_missing_coacd_or_python_is_refused_by_name(cli: Path, parts: Path, tmp_path: Path) -> None:
+    no_coacd = tmp_path / "python-without-coacd"
+    no_coacd.write_text(
+        "#!/bin/sh\n"
+        f'exec "{sys.executable}" -c "import sys; sys.modules[\'coacd\'] = None; '
+        'exec(compile(sys.argv[1], \'coacd.py\', \'exec\'))" "$2"\n'
+    )
+    no_coacd.chmod(0o755)
+    for python, said in [(str(no_coacd), "pip install coacd"), (str(tmp_path / "nope"), "cannot run")]:
+        out = tmp_path / f"out-{Path(python).name}"
+        o = run(cli, "assembly", "decompose", str(parts / "pin.stl"), "--units", "mm",
+                "--clearance-mm", "0.9", "--out", str(out),
+                "--cache-dir", str(tmp_path / "cache"), env={"PEGTWIN_PYTHON": python})
+        assert o.returncode == 2, o.stderr
+        assert said in o.stderr and "pin.stl" in o.stderr, o.stderr
+        assert not out.exists()
