@@ -373,7 +373,22 @@ fn a_part_that_is_not_convex_is_decomposed_exactly_or_refused_by_name() {
     );
     assert!((loaded.report.clearance_min_mm - 0.4).abs() < 1e-4);
 
+    // Asked to decompose with CoACD, a stack keeps its exact cut: its two prisms.
     let plain = std::fs::read_to_string(&file).unwrap();
+    let asked = plain
+        .replacen(
+            "mesh = \"peg\"\nunits = \"mm\"\n",
+            "mesh = \"peg/pin_and_flange.stl\"\nunits = \"mm\"\ndecompose = \"coacd\"\n",
+            1,
+        )
+        .replacen("[peg]", "clearance_mm = 0.4\n[peg]", 1);
+    std::fs::write(&file, &asked).unwrap();
+    let kept = pegtwin(&["assembly", "check", file.to_str().unwrap(), "--json"]);
+    assert!(kept.status.success(), "{asked}\n{}", stderr(&kept));
+    let report: serde_json::Value = serde_json::from_slice(&kept.stdout).unwrap();
+    assert_eq!(report["peg"]["pieces"], 2, "{report}");
+    std::fs::write(&file, &plain).unwrap();
+
     let turned = |rpy: [f64; 3]| {
         write_pin_and_flange(dir.path(), &pose([0.0; 3], rpy));
         let frame = format!("units = \"mm\"\nframe_rpy_deg = {rpy:?}\n");

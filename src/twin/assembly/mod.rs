@@ -32,7 +32,7 @@ pub use robot::RobotReport;
 
 use crate::error::{Error, Result};
 use crate::pose::rotation_rpy;
-use crate::twin::geometry::mesh::{MeshUnits, load_solid};
+use crate::twin::geometry::mesh::{MeshUnits, load_solid, mesh_part, read_mesh};
 use crate::twin::geometry::solid::{ConvexPiece, Solid};
 use crate::twin::geometry::{self, PartPair};
 use crate::twin::robot::spec::RobotSpec;
@@ -53,6 +53,9 @@ const TIP_TOLERANCE_M: f64 = 1e-5;
 const PART_SIZE_RANGE_M: (f64, f64) = (1e-3, 1.0);
 /// A part standing further off its surface than this fraction of the clearance is refused.
 pub const MAX_DEVIATION_OF_CLEARANCE: f64 = 0.25;
+/// A part whose hull or exact stack cut stands no further than this off its surface is taken
+/// as it is, even with `decompose = "coacd"`, m (rounding in the files is far below it).
+const EXACT_PART_M: f64 = 1e-6;
 /// A part whose hull stands this far off its surface is not convex, whatever the clearance, m.
 const NON_CONVEX_M: f64 = 0.05e-3;
 /// The peg's axis may stand this fraction of the clearance off the hole's, as the wall gaps
@@ -465,6 +468,21 @@ fn read_part(
             let path = dir.join(mesh);
             let units = e.units.expect("checked: a mesh has units");
             let c = clearance_mm.expect("checked: decompose comes with a clearance") * 1e-3;
+            // A convex part, or a stack of extrusions, keeps its exact pieces.
+            let exact = mesh_part(&read_mesh(&path, units)?, &path)?;
+            if exact.deviation_m <= EXACT_PART_M {
+                let solid = Solid {
+                    pieces: exact.pieces,
+                    boundary: None,
+                };
+                let source = path.display().to_string();
+                return Ok(part(
+                    solid,
+                    source,
+                    vec![(path, exact.deviation_m)],
+                    Vec::new(),
+                ));
+            }
             let cache = crate::files::cache_folder(None)?;
             let cut = decompose::decompose(&path, units, c * MAX_DEVIATION_OF_CLEARANCE, &cache)?;
             let warning = format!(
