@@ -1,7 +1,7 @@
-"""`pegtwin assembly decompose` and `decompose = "coacd"`: a filleted rounded-cross pin (curved
-and slanted faces: neither convex nor a stack of extrusions) goes from one STL through CoACD
-to a trial, its parts within a quarter of the clearance of its surface; a missing CoACD or
-Python is refused by name."""
+"""`pegtwin assembly decompose` and `decompose = "coacd"`: filleted pins, a rounded cross and a
+slotted circle (curved and slanted faces: neither convex nor a stack of extrusions), go from one
+STL through CoACD to a trial, their parts within a quarter of the clearance of their surface; a
+missing CoACD or Python is refused by name."""
 
 from __future__ import annotations
 
@@ -24,15 +24,17 @@ def run(cli: Path, *args: str, env: dict | None = None) -> subprocess.CompletedP
                           env={**os.environ, **(env or {})})
 
 
-@pytest.fixture(scope="module")
-def parts(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("pin")
-    pins.filleted_cross_pin(d / "pin.stl")
-    pins.cross_hole_block(d / "hole.stl", CLEARANCE_MM)
-    return d
+def pair(folder: Path, shape: str) -> Path:
+    pins.filleted_pin(folder / "pin.stl", shape)
+    pins.hole_block(folder / "hole.stl", shape, CLEARANCE_MM)
+    return folder
 
 
-def test_a_filleted_pin_goes_from_one_stl_through_coacd_to_a_trial(cli: Path, parts: Path) -> None:
+@pytest.mark.parametrize("shape", ["cross", "slot"])
+def test_a_filleted_pin_goes_from_one_stl_through_coacd_to_a_trial(
+    cli: Path, tmp_path: Path, shape: str
+) -> None:
+    parts = pair(tmp_path, shape)
     cache = parts / "cache"
     env = {"PEGTWIN_PYTHON": sys.executable, "XDG_CACHE_HOME": str(cache)}
     o = run(cli, "assembly", "decompose", str(parts / "pin.stl"), "--units", "mm",
@@ -44,7 +46,7 @@ def test_a_filleted_pin_goes_from_one_stl_through_coacd_to_a_trial(cli: Path, pa
     assert len(written) > 1, o.stdout
 
     (parts / "pin.toml").write_text(
-        'name = "filleted-cross"\nclearance_mm = 1.0\n'
+        f'name = "filleted-{shape}"\nclearance_mm = {CLEARANCE_MM}\n'
         '[peg]\nmesh = "pin.stl"\nunits = "mm"\ndecompose = "coacd"\n'
         '[hole]\nmesh = "hole.stl"\nunits = "mm"\n'
     )
@@ -64,7 +66,8 @@ def test_a_filleted_pin_goes_from_one_stl_through_coacd_to_a_trial(cli: Path, pa
     assert record["outcome"] in ("success", "failure"), record
 
 
-def test_a_missing_coacd_or_python_is_refused_by_name(cli: Path, parts: Path, tmp_path: Path) -> None:
+def test_a_missing_coacd_or_python_is_refused_by_name(cli: Path, tmp_path: Path) -> None:
+    parts = pair(tmp_path, "cross")
     no_coacd = tmp_path / "python-without-coacd"
     no_coacd.write_text(
         "#!/bin/sh\n"

@@ -39,20 +39,17 @@ pub fn paired_geoms(peg: Option<&Source>, hole: Option<&Source>) -> Result<Paire
         s.map(|s| mjcf::body_geoms(&s.file, s.body)).transpose()
     };
     let (peg_geoms, hole_geoms) = (read(peg)?, read(hole)?);
-    let default_bits = |g: &Geom| (g.contype, g.conaffinity);
-    let any_bits = vec![(1u32, 1u32)];
     let bits_of = |gs: &Option<Vec<Geom>>| match gs {
-        Some(gs) => gs.iter().map(default_bits).collect::<Vec<_>>(),
-        None => any_bits.clone(),
+        Some(gs) => gs.iter().map(Geom::bits).collect::<Vec<_>>(),
+        None => vec![(1u32, 1u32)],
     };
     let (peg_bits, hole_bits) = (bits_of(&peg_geoms), bits_of(&hole_geoms));
-    let meets = |a: (u32, u32), b: (u32, u32)| a.0 & b.1 != 0 || b.0 & a.1 != 0;
     let mut warnings = Vec::new();
     let mut keep = |section: &str, geoms: Option<Vec<Geom>>, other: &[(u32, u32)]| {
         geoms.map(|gs| {
             gs.into_iter()
                 .filter(|g| {
-                    let hit = other.iter().any(|o| meets(default_bits(g), *o));
+                    let hit = other.iter().any(|o| mjcf::bits_collide(g.bits(), *o));
                     if !hit {
                         warnings.push(format!(
                             "[{section}] {}: collides with no geom of the other part \

@@ -59,8 +59,19 @@ impl Round {
         }
     }
 
-    /// Its sizes, for messages and checks: all must be above 0.
-    fn sizes(&self) -> Vec<f64> {
+    /// MuJoCo's name of the geom type.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Round::Sphere { .. } => "sphere",
+            Round::Capsule { .. } => "capsule",
+            Round::Cylinder { .. } => "cylinder",
+            Round::Ellipsoid { .. } => "ellipsoid",
+        }
+    }
+
+    /// Its sizes as MuJoCo's `size` lists them (radius, half length; or the radii): all must be
+    /// above 0.
+    pub fn sizes(&self) -> Vec<f64> {
         match *self {
             Round::Sphere { radius } => vec![radius],
             Round::Capsule {

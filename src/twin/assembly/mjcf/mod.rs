@@ -59,7 +59,13 @@ pub struct Geom {
 
 /// Whether MuJoCo lets two geoms collide (its `contype`/`conaffinity` rule).
 pub fn collide(a: &Geom, b: &Geom) -> bool {
-    a.contype & b.conaffinity != 0 || b.contype & a.conaffinity != 0
+    bits_collide(a.bits(), b.bits())
+}
+
+/// MuJoCo's rule on (`contype`, `conaffinity`) pairs: either's `contype` shares a bit with the
+/// other's `conaffinity`.
+pub fn bits_collide(a: (u32, u32), b: (u32, u32)) -> bool {
+    a.0 & b.1 != 0 || b.0 & a.1 != 0
 }
 
 /// The model's settings a geom's reading needs.
@@ -377,23 +383,23 @@ impl Geom {
         Ok(Some(soup))
     }
 
+    /// Its (`contype`, `conaffinity`).
+    pub fn bits(&self) -> (u32, u32) {
+        (self.contype, self.conaffinity)
+    }
+
     /// MuJoCo's `size` of the geom (zeros where its type has fewer numbers).
     pub fn mujoco_size(&self) -> [f64; 3] {
         match &self.shape {
             GeomShape::Mesh { .. } => [0.0; 3],
             GeomShape::Box { half_extents: h } => [h.x, h.y, h.z],
-            GeomShape::Round(Round::Sphere { radius }) => [*radius, 0.0, 0.0],
-            GeomShape::Round(
-                Round::Capsule {
-                    radius,
-                    half_length,
+            GeomShape::Round(round) => {
+                let mut size = [0.0; 3];
+                for (to, from) in size.iter_mut().zip(round.sizes()) {
+                    *to = from;
                 }
-                | Round::Cylinder {
-                    radius,
-                    half_length,
-                },
-            ) => [*radius, *half_length, 0.0],
-            GeomShape::Round(Round::Ellipsoid { radii }) => [radii.x, radii.y, radii.z],
+                size
+            }
         }
     }
 }
@@ -431,10 +437,7 @@ pub fn report(path: &Path, body: &str) -> Result<Vec<GeomReport>> {
                 kind: match g.shape {
                     GeomShape::Mesh { .. } => "mesh",
                     GeomShape::Box { .. } => "box",
-                    GeomShape::Round(Round::Sphere { .. }) => "sphere",
-                    GeomShape::Round(Round::Capsule { .. }) => "capsule",
-                    GeomShape::Round(Round::Cylinder { .. }) => "cylinder",
-                    GeomShape::Round(Round::Ellipsoid { .. }) => "ellipsoid",
+                    GeomShape::Round(round) => round.name(),
                 },
                 size: g.mujoco_size(),
                 pos: [t.x, t.y, t.z],
