@@ -280,3 +280,41 @@ fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
     let err = run_trial(&cross(0.5e-3), &robot, &params, &bad, Some(&m), 5, None).unwrap_err();
     assert!(err.to_string().contains("check_every_s"), "{err}");
 }
+
+/// The active method observes as the adaptive one up to its first check, then widens the motion
+/// on the axes its estimate knows least: with loose limits the two stop there with the same
+/// contacts; with limits they cannot meet, the active one records other contacts, and so
+/// estimates otherwise.
+#[test]
+fn the_active_method_widens_the_motion_after_its_first_check() {
+    use pegtwin::method::config::AdaptiveConfig;
+    let dir = tempfile::tempdir().unwrap();
+    let m = pegtwin::method::manifold::file::load(&small_manifold(dir.path(), 0.5e-3)).unwrap();
+    let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
+    let params = WorkCellParams::default();
+    let run = |method: Method, limit: f64| {
+        let config = TrialConfig {
+            method,
+            t_obs_s: 5.0,
+            adaptive: AdaptiveConfig {
+                check_from_s: 4.0,
+                check_every_s: 0.5,
+                max_std_xy_m: Some(limit),
+                max_std_tilt_rad: Some(limit),
+                max_std_yaw_rad: Some(limit),
+            },
+            ..TrialConfig::default()
+        };
+        run_trial(&cross(0.5e-3), &robot, &params, &config, Some(&m), 5, None).unwrap()
+    };
+    let (adaptive, active) = (run(Method::Adaptive, 1.0), run(Method::Active, 1.0));
+    assert_eq!(active.method, Method::Active);
+    assert_eq!(active.observation_s, Some(4.0));
+    assert_eq!(active.contact_observations, adaptive.contact_observations);
+    assert_eq!(active.estimate, adaptive.estimate);
+
+    let (adaptive, active) = (run(Method::Adaptive, 1e-12), run(Method::Active, 1e-12));
+    assert_eq!(active.observation_s, Some(5.0));
+    // Nearly every step of a deep observation is in contact: the count alone cannot tell.
+    assert_ne!(active.estimate, adaptive.estimate);
+}

@@ -71,9 +71,10 @@ def trial(
         clearance_mm: diametral clearance of the built-in, mm (0.01-5).
         seed: the trial seed; it draws the hole offset and seeds every noise source.
         t_obs_s: observation time, s.
-        method: ``manifold`` (the paper's method), ``direct`` (its baseline) or ``adaptive``
+        method: ``manifold`` (the paper's method), ``direct`` (its baseline), ``adaptive``
             (the paper's method observing until its estimate is certain enough, at most
-            ``t_obs``; the record's ``observation_s`` says how long).
+            ``t_obs``; the record's ``observation_s`` says how long) or ``active`` (adaptive,
+            widening the motion on the axes it knows least).
         start: ``partial`` (partially inserted, the paper's set-up) or ``above`` (search first).
         offset_mm: half-range of the hole's position offset, mm.
         offset_deg: half-range of the hole's orientation offset, deg.

@@ -10,7 +10,6 @@
 
 use crate::campaign::records::TrialSpec;
 use crate::campaign::scenario::PlannedCell;
-use crate::method::config::Method;
 use std::collections::HashMap;
 
 /// `trials`, in their order, gathered into the pieces of work a campaign runs: each piece is
@@ -31,8 +30,8 @@ pub fn share_observations(plan: &[PlannedCell], trials: &[TrialSpec]) -> Vec<Vec
     let mut by_seed: HashMap<u64, Vec<usize>> = HashMap::new();
     for spec in trials {
         let config = &plan[spec.cell].config;
-        // The adaptive method decides while observing when to stop: it observes alone.
-        if config.ensure_valid().is_ok() && config.method != Method::Adaptive {
+        // The adaptive and active methods decide while observing: they observe alone.
+        if config.ensure_valid().is_ok() && !config.method.stops_itself() {
             let open = by_seed.entry(spec.seed).or_default();
             if let Some(&piece) = open.iter().find(|&&p| alike(&pieces[p][0], spec)) {
                 pieces[piece].push(*spec);

@@ -17,6 +17,7 @@
 //! seat force (IV-E, V-B).
 
 use crate::method::config::AdaptiveConfig;
+use crate::method::primitives::Probe;
 use crate::twin::geometry::{HOLE_ENTRY_CHAMFER_M, PEG_TIP_CHAMFER_M, PartPair};
 
 /// The paper's critical orientation error (Fig. 5), rad.
@@ -49,6 +50,26 @@ impl StopRule {
     /// Whether an estimate with standard deviations `std` is certain enough to insert.
     pub fn met(&self, std: &[f64; 6]) -> bool {
         std.iter().zip(&self.max_std).all(|(s, max)| s <= max)
+    }
+
+    /// The motion group whose axes stand furthest above their limits, as a share of the limit
+    /// (x, y: the spiral; roll, pitch: the tilt oscillations; yaw), for active probing to widen.
+    /// Ties go to the earlier group.
+    pub fn weakest(&self, std: &[f64; 6]) -> Probe {
+        let share = |axes: &[usize]| {
+            axes.iter()
+                .map(|&i| std[i] / self.max_std[i])
+                .fold(0.0, f64::max)
+        };
+        let groups = [
+            (Probe::Lateral, share(&[0, 1])),
+            (Probe::Tilt, share(&[3, 4])),
+            (Probe::Yaw, share(&[5])),
+        ];
+        groups
+            .iter()
+            .fold(groups[0], |best, g| if g.1 > best.1 { *g } else { best })
+            .0
     }
 }
 
@@ -111,5 +132,22 @@ mod tests {
         assert_eq!(StopRule::for_pair(&cross, &set).max_std[0], 1e-4);
         assert!(rule.met(&[1e-4, 1e-4, 1.0, 0.01, 0.01, 0.001]));
         assert!(!rule.met(&[1e-3, 1e-4, 1.0, 0.01, 0.01, 0.001]));
+    }
+
+    #[test]
+    fn active_probing_widens_the_group_furthest_above_its_limit() {
+        let rule = StopRule {
+            max_std: [1e-4, 1e-4, f64::INFINITY, 0.01, 0.01, 0.002],
+        };
+        // y at 3x its limit, pitch at 2x, yaw at 1.5x; z is never chosen.
+        assert_eq!(
+            rule.weakest(&[1e-4, 3e-4, 1.0, 0.01, 0.02, 0.003]),
+            Probe::Lateral
+        );
+        assert_eq!(
+            rule.weakest(&[1e-4, 1e-4, 1.0, 0.04, 0.02, 0.003]),
+            Probe::Tilt
+        );
+        assert_eq!(rule.weakest(&[0.0, 0.0, 1.0, 0.0, 0.0, 0.003]), Probe::Yaw);
     }
 }

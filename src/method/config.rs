@@ -20,12 +20,20 @@ pub enum Method {
     /// and stops once the estimate's insertion-critical uncertainties are small enough
     /// ([`AdaptiveConfig`], `method::adaptive`), or at `t_obs_s`.
     Adaptive,
+    /// The adaptive method probing actively: after each registration, the motion widens the
+    /// amplitudes of the axes whose uncertainty stands furthest above its limit.
+    Active,
 }
 
 impl Method {
     /// Whether the method registers its observations against a reference manifold.
     pub fn registers(self) -> bool {
-        matches!(self, Method::Manifold | Method::Adaptive)
+        matches!(self, Method::Manifold | Method::Adaptive | Method::Active)
+    }
+
+    /// Whether the method decides while observing when to stop (adaptive, active).
+    pub fn stops_itself(self) -> bool {
+        matches!(self, Method::Adaptive | Method::Active)
     }
 }
 
@@ -58,6 +66,12 @@ impl Choice for Method {
             value: Method::Adaptive,
             help: "the manifold method, observing until the estimate is certain enough to insert \
                    (at most t_obs)",
+        },
+        Named {
+            name: "active",
+            value: Method::Active,
+            help: "the adaptive method, widening the motion on the axes it knows least after each \
+                   registration",
         },
     ];
 }
@@ -274,7 +288,7 @@ impl TrialConfig {
             ..TrialConfig::default()
         };
         match method {
-            Method::Manifold | Method::Adaptive => base,
+            Method::Manifold | Method::Adaptive | Method::Active => base,
             Method::Direct => TrialConfig {
                 insert_gains: ImpedanceGains {
                     stiffness: [3955.0, 3955.0, 3631.0, 11.0, 11.0, 11.0],
@@ -410,7 +424,7 @@ impl TrialConfig {
         self.observe_gains.ensure_valid()?;
         self.align_gains.ensure_valid()?;
         self.insert_gains.ensure_valid()?;
-        if self.method == Method::Adaptive {
+        if self.method.stops_itself() {
             self.adaptive.ensure_valid(self.t_obs_s)?;
         }
         self.registration.ensure_valid()

@@ -7,7 +7,9 @@
 
 use crate::method::config::TrialConfig;
 use crate::method::manifold::build::SamplerConfig;
-use crate::method::primitives::{Descent, Drive, PerturbationState, SamplingMotion, ScaleSchedule};
+use crate::method::primitives::{
+    Descent, Drive, PerturbationState, Probe, SamplingMotion, ScaleSchedule,
+};
 use crate::method::session::{Phase, Session};
 use crate::pose::{Iso, Pose6};
 use std::ops::ControlFlow;
@@ -92,6 +94,7 @@ impl ObservationPhase {
                 before: config.phase1_scale,
                 after: config.phase2_scale,
                 switch_s: motion.descent.duration_s(),
+                widened: None,
             },
             motion,
             clearance_m,
@@ -126,6 +129,13 @@ impl ObservationPhase {
         });
         self.steps = end;
         self.stopped = !completed;
+    }
+
+    /// From now on (after phase 1), `probe`'s amplitudes keep phase 1's wide scale, the others
+    /// phase 2's (active probing: the widest the fixed primitives move, so within their force and
+    /// travel limits).
+    pub fn widen(&mut self, probe: Probe) {
+        self.schedule.widened = Some(probe);
     }
 
     /// What has been observed so far, at simulated time `now_s`.

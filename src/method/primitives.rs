@@ -224,16 +224,26 @@ impl SamplingMotion {
     /// Target `hole_T_tcp` at time `t_s`, with the perturbation's current `noise` (from
     /// [`PerturbationState::step`]).
     pub fn target(&self, t_s: f64, clearance_m: f64, noise: &[f64; 6]) -> Pose6 {
+        self.target_scaled(t_s, clearance_m, noise, [self.scale; 3])
+    }
+
+    /// [`SamplingMotion::target`] with the amplitudes of the spiral, the roll and pitch, and
+    /// the yaw scaled by `scales` (in [`Probe`]'s order) instead of `scale`.
+    pub fn target_scaled(
+        &self,
+        t_s: f64,
+        clearance_m: f64,
+        noise: &[f64; 6],
+        scales: [f64; 3],
+    ) -> Pose6 {
         let depth = self.descent.depth(t_s);
         let spiral = Spiral {
-            max_radius_m: self.scale * self.schedule.lateral_radius(clearance_m),
+            max_radius_m: scales[0] * self.schedule.lateral_radius(clearance_m),
             pitch_m: self.spiral_pitch_m,
             speed_m_per_s: self.spiral_speed_m_per_s,
         };
-        let amplitudes = self
-            .schedule
-            .angular_amplitudes(depth, clearance_m)
-            .map(|a| a * self.scale);
+        let [roll, pitch, yaw] = self.schedule.angular_amplitudes(depth, clearance_m);
+        let amplitudes = [roll * scales[1], pitch * scales[1], yaw * scales[2]];
         let oscillation = Oscillation {
             amplitude_rad: amplitudes,
             frequency_hz: self.frequency_hz,
@@ -251,14 +261,26 @@ impl SamplingMotion {
     }
 }
 
+/// The groups of the motion's amplitudes: the spiral (x, y), the roll and pitch oscillations
+/// (tilt), the yaw oscillation. Active probing (issue "know when you know", docs/method.md)
+/// widens one of them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Probe {
+    Lateral = 0,
+    Tilt = 1,
+    Yaw = 2,
+}
+
 /// The amplitude scale of a drive: `before` until `switch_s`, then `after` (the two phases of
-/// the observation, paper IV-C; one constant scale for the manifold sampler).
+/// the observation, paper IV-C; one constant scale for the manifold sampler); after the switch,
+/// a `widened` group keeps the wide scale `before` (active probing).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScaleSchedule {
     pub before: f64,
     pub after: f64,
     /// Time of the switch from the start of the drive, s.
     pub switch_s: f64,
+    pub widened: Option<Probe>,
 }
 
 impl ScaleSchedule {
@@ -268,7 +290,20 @@ impl ScaleSchedule {
             before: scale,
             after: scale,
             switch_s: f64::INFINITY,
+            widened: None,
         }
+    }
+
+    /// The scales of the spiral, the tilt and the yaw at `t_s` from the start of the drive.
+    pub fn scales_at(&self, t_s: f64) -> [f64; 3] {
+        if t_s < self.switch_s {
+            return [self.before; 3];
+        }
+        let mut scales = [self.after; 3];
+        if let Some(probe) = self.widened {
+            scales[probe as usize] = self.before;
+        }
+        scales
     }
 }
 
@@ -315,17 +350,12 @@ impl Drive<'_> {
         mut on_step: impl FnMut(&Measurements) -> ControlFlow<()>,
     ) -> bool {
         let dt = session.dt_s();
-        let mut motion = self.motion.clone();
         for k in steps {
             let t = k as f64 * dt;
-            motion.scale = if t < self.schedule.switch_s {
-                self.schedule.before
-            } else {
-                self.schedule.after
-            };
+            let scales = self.schedule.scales_at(t);
             let n = noise.step(dt);
-            session
-                .command_pose(self.base_t_hole * motion.target(t, self.clearance_m, &n).to_iso());
+            let target = self.motion.target_scaled(t, self.clearance_m, &n, scales);
+            session.command_pose(self.base_t_hole * target.to_iso());
             if !session.step() || on_step(&session.measurements()).is_break() {
                 return false;
             }
@@ -387,6 +417,31 @@ mod tests {
         assert!((d.depth(2.5) - 0.007).abs() < 1e-12);
         assert_eq!(d.depth(100.0), 0.012);
         assert!((d.duration_s() - 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_widened_group_keeps_the_wide_scale_after_the_switch() {
+        let mut s = ScaleSchedule {
+            before: 1.0,
+            after: 0.8,
+            switch_s: 3.6,
+            widened: None,
+        };
+        assert_eq!(s.scales_at(1.0), [1.0; 3]);
+        assert_eq!(s.scales_at(4.0), [0.8; 3]);
+        s.widened = Some(Probe::Tilt);
+        assert_eq!(s.scales_at(1.0), [1.0; 3]);
+        assert_eq!(s.scales_at(4.0), [0.8, 1.0, 0.8]);
+        let motion = crate::method::manifold::build::SamplerConfig::default().motion;
+        let noise = [0.0; 6];
+        assert_eq!(
+            motion.target_scaled(2.0, 5e-4, &noise, [motion.scale; 3]).0,
+            motion.target(2.0, 5e-4, &noise).0
+        );
+        let wide = motion.target_scaled(2.0, 5e-4, &noise, [0.8, 1.0, 0.8]).0;
+        let narrow = motion.target_scaled(2.0, 5e-4, &noise, [0.8; 3]).0;
+        assert_eq!(wide[..3], narrow[..3]);
+        assert!(wide[3].abs() > narrow[3].abs() && wide[5] == narrow[5]);
     }
 
     #[test]

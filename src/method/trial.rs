@@ -46,7 +46,7 @@ pub fn run_trial(
     seed: u64,
     mut recorder: Option<&mut dyn Recorder>,
 ) -> Result<TrialResult> {
-    if config.method == Method::Adaptive {
+    if config.method.stops_itself() {
         return run_adaptive_trial(pair, robot, params, config, manifold, seed, recorder);
     }
     let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
@@ -219,7 +219,8 @@ impl ObservingTrial {
     /// from `check_from_s` on and every `check_every_s`, it registers the observations so far,
     /// starting from the last estimate (the believed hole at first), and stops as soon as the
     /// estimate's standard deviations meet [`StopRule`], or at the longest budget (`t_obs_s`).
-    /// Returns the registration of the observation it stopped with (none when too few contacts
+    /// The active method also widens, after each check, the motion group its estimate knows
+    /// least ([`StopRule::weakest`], [`ObservationPhase::widen`]). Returns the registration of the observation it stopped with (none when too few contacts
     /// were recorded to register, or when the trial stopped before observing) and its wall time.
     pub fn observe_adaptively(
         &mut self,
@@ -246,6 +247,11 @@ impl ObservingTrial {
             let certain = (last.as_ref()).is_some_and(|(r, _)| rule.met(&r.estimate_std));
             if certain || t >= config.t_obs_s || self.trial.fault.is_some() {
                 return Ok(last);
+            }
+            if let (Method::Active, Some((r, _)), Some(phase)) =
+                (config.method, &last, &mut self.observation_phase)
+            {
+                phase.widen(rule.weakest(&r.estimate_std));
             }
             t = (t + config.adaptive.check_every_s).min(config.t_obs_s);
         }

@@ -112,6 +112,7 @@ pub(super) fn success_series(summary: &Summary, geometries: &[String]) -> Vec<Ba
                 Method::Manifold => format!("manifold, t_obs {t} s"),
                 Method::Direct => format!("direct, t_obs {t} s"),
                 Method::Adaptive => format!("adaptive, t_obs <= {t} s"),
+                Method::Active => format!("active, t_obs <= {t} s"),
             };
             let values = geometries
                 .iter()

@@ -9,12 +9,9 @@ use crate::method::config::Method;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-/// Whether the figure has something to show: a cell of the adaptive method.
+/// Whether the figure has something to show: a cell of the adaptive or the active method.
 pub(super) fn wanted(summary: &Summary) -> bool {
-    summary
-        .cells
-        .iter()
-        .any(|c| c.cell.method == Method::Adaptive)
+    summary.cells.iter().any(|c| c.cell.method.stops_itself())
 }
 
 /// (mean observation time s, success %, Wilson low %, high %) of a cell.
@@ -39,7 +36,7 @@ pub(super) fn draw_time<DB: DrawingBackend>(
     let t_max = all.iter().map(|c| c.cell.t_obs_s).fold(1.0, f64::max);
     let mut chart = ChartBuilder::on(&root)
         .caption(
-            "Success against mean observation time (circles: fixed t_obs; triangles: adaptive)",
+            "Success against mean observation time (circles: fixed t_obs; triangles: adaptive; crosses: active)",
             ("sans-serif", 20),
         )
         .margin(10)
@@ -79,6 +76,7 @@ pub(super) fn draw_time<DB: DrawingBackend>(
                 let style = colour.filled();
                 let shape: DynElement<DB, (f64, f64)> = match c.cell.method {
                     Method::Adaptive => TriangleMarker::new((t, rate), 7, style).into_dyn(),
+                    Method::Active => Cross::new((t, rate), 6, colour.stroke_width(2)).into_dyn(),
                     _ => Circle::new((t, rate), 5, style).into_dyn(),
                 };
                 shape

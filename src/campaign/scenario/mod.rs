@@ -64,7 +64,7 @@ pub struct Scenario {
     pub assembly_dir: PathBuf,
     /// Observation times of the manifold method, s.
     pub t_obs_s: Vec<f64>,
-    /// Methods to run: "manifold", "direct" and/or "adaptive".
+    /// Methods to run: "manifold", "direct", "adaptive" and/or "active".
     pub methods: Vec<Method>,
     /// Observation time of the direct baseline, s (the paper: 10 s).
     #[serde(default = "default_direct_t_obs")]
@@ -529,14 +529,19 @@ impl Scenario {
             .map(|a| (a.pair.name.clone(), a.pair.clearance_mm()));
         let mut cells = Vec::new();
         for (geometry, clearance_mm) in builtins.chain(assemblies) {
-            for &method in &[Method::Manifold, Method::Direct, Method::Adaptive] {
+            for &method in &[
+                Method::Manifold,
+                Method::Direct,
+                Method::Adaptive,
+                Method::Active,
+            ] {
                 if !self.methods.contains(&method) {
                     continue;
                 }
                 let times = match method {
                     Method::Manifold => self.t_obs_s.clone(),
                     Method::Direct => vec![self.direct_t_obs_s],
-                    Method::Adaptive => vec![self.adaptive.t_obs_max_s()],
+                    Method::Adaptive | Method::Active => vec![self.adaptive.t_obs_max_s()],
                 };
                 for t in times {
                     cells.push(Condition {
@@ -569,7 +574,7 @@ impl Scenario {
             ..d
         };
         self.insertion.apply(&mut c);
-        if cell.method == Method::Adaptive {
+        if cell.method.stops_itself() {
             self.adaptive.apply(&mut c);
         }
         if cell.method == Method::Direct {
