@@ -220,8 +220,9 @@ impl ObservingTrial {
     /// starting from the last estimate (the believed hole at first), and stops as soon as the
     /// estimate's standard deviations meet [`StopRule`], or at the longest budget (`t_obs_s`).
     /// The active method also widens, after each check, the motion group its estimate knows
-    /// least ([`StopRule::weakest`], [`ObservationPhase::widen`]). Returns the registration of the observation it stopped with (none when too few contacts
-    /// were recorded to register, or when the trial stopped before observing) and its wall time.
+    /// least ([`StopRule::weakest`], [`ObservationPhase::widen`]). Returns the registration of
+    /// the observation it stopped with (none when too few contacts were recorded to register, or
+    /// when the trial stopped before observing) and its wall time.
     pub fn observe_adaptively(
         &mut self,
         pair: &PartPair,
