@@ -214,7 +214,8 @@ pub struct SamplingMotion {
     pub descent: Descent,
     pub perturbation: Perturbation,
     pub schedule: AmplitudeSchedule,
-    /// Multiplies every amplitude.
+    /// Multiplies every amplitude where one scale serves the whole drive (the sampler's
+    /// [`ScaleSchedule::constant`]; the geometric sampler's ranges).
     pub scale: f64,
     /// Time offset of the spiral and the oscillation, s (episodes start at different phases).
     pub phase_s: f64,
@@ -222,20 +223,9 @@ pub struct SamplingMotion {
 
 impl SamplingMotion {
     /// Target `hole_T_tcp` at time `t_s`, with the perturbation's current `noise` (from
-    /// [`PerturbationState::step`]).
-    pub fn target(&self, t_s: f64, clearance_m: f64, noise: &[f64; 6]) -> Pose6 {
-        self.target_scaled(t_s, clearance_m, noise, [self.scale; 3])
-    }
-
-    /// [`SamplingMotion::target`] with the amplitudes of the spiral, the roll and pitch, and
-    /// the yaw scaled by `scales` (in [`Probe`]'s order) instead of `scale`.
-    pub fn target_scaled(
-        &self,
-        t_s: f64,
-        clearance_m: f64,
-        noise: &[f64; 6],
-        scales: [f64; 3],
-    ) -> Pose6 {
+    /// [`PerturbationState::step`]), the amplitudes of the spiral, the roll and pitch, and the
+    /// yaw scaled by `scales` (in [`Probe`]'s order; a drive's [`ScaleSchedule::scales_at`]).
+    pub fn target(&self, t_s: f64, clearance_m: f64, noise: &[f64; 6], scales: [f64; 3]) -> Pose6 {
         let depth = self.descent.depth(t_s);
         let spiral = Spiral {
             max_radius_m: scales[0] * self.schedule.lateral_radius(clearance_m),
@@ -354,7 +344,7 @@ impl Drive<'_> {
             let t = k as f64 * dt;
             let scales = self.schedule.scales_at(t);
             let n = noise.step(dt);
-            let target = self.motion.target_scaled(t, self.clearance_m, &n, scales);
+            let target = self.motion.target(t, self.clearance_m, &n, scales);
             session.command_pose(self.base_t_hole * target.to_iso());
             if !session.step() || on_step(&session.measurements()).is_break() {
                 return false;
@@ -434,12 +424,8 @@ mod tests {
         assert_eq!(s.scales_at(4.0), [0.8, 1.0, 0.8]);
         let motion = crate::method::manifold::build::SamplerConfig::default().motion;
         let noise = [0.0; 6];
-        assert_eq!(
-            motion.target_scaled(2.0, 5e-4, &noise, [motion.scale; 3]).0,
-            motion.target(2.0, 5e-4, &noise).0
-        );
-        let wide = motion.target_scaled(2.0, 5e-4, &noise, [0.8, 1.0, 0.8]).0;
-        let narrow = motion.target_scaled(2.0, 5e-4, &noise, [0.8; 3]).0;
+        let wide = motion.target(2.0, 5e-4, &noise, [0.8, 1.0, 0.8]).0;
+        let narrow = motion.target(2.0, 5e-4, &noise, [0.8; 3]).0;
         assert_eq!(wide[..3], narrow[..3]);
         assert!(wide[3].abs() > narrow[3].abs() && wide[5] == narrow[5]);
     }
