@@ -370,6 +370,34 @@ fn bad_scenarios_and_folders_are_refused_with_exit_2() {
     assert!(stderr(&o).contains("campaign.json"), "{}", stderr(&o));
 }
 
+/// `tune`, `calibrate` and Python's `evaluate` run trials through `run_trials`, which shares
+/// each seed's observation between the cells that observe alike, as a campaign does: every record
+/// is the campaign's, bit for bit.
+#[test]
+fn trials_run_for_a_search_are_the_campaigns_records() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let scenario = write(t, "s.toml", SCENARIO);
+    let cache = t.join("cache");
+    let o = campaign(&scenario, &t.join("run"), &cache, &["--replays", "none"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = pegtwin::campaign::scenario::Scenario::load(Path::new(&scenario)).unwrap();
+    let options = pegtwin::campaign::run::RunOptions {
+        cache_dir: cache,
+        progress: &(),
+    };
+    let records = pegtwin::campaign::run::run_trial_range(&s, 1..3, &options).unwrap();
+    let lines: Vec<String> = (records.iter())
+        .map(|r| serde_json::to_string(r).unwrap())
+        .collect();
+    let written = trials(&t.join("run"));
+    let campaign: Vec<&str> = (written.lines())
+        .filter(|l| !l.contains("\"trial\":0,"))
+        .collect();
+    assert_eq!(lines.len(), 6, "three cells, trials 1 and 2");
+    assert_eq!(lines, campaign);
+}
+
 #[test]
 fn tune_writes_its_table_and_prints_a_usable_snippet() {
     let tmp = tempfile::tempdir().unwrap();

@@ -112,15 +112,17 @@ const DIRECT_AXES: [Axis; 5] = [
 
 /// [`TuneTarget::Insertion`]: insertion x, y and z stiffness (N/m), rotational (N m/rad),
 /// damping, how far the target goes past the believed floor (mm: the compliance turns it into
-/// the push that carries the peg past friction; the registration's z error is about 2 mm) and the
-/// seat force (N).
-const INSERTION_AXES: [Axis; 6] = [
+/// the push that carries the peg past friction; the registration's z error is about 2 mm), the
+/// seat force (N) and how far above the believed floor the seat break arms (mm: a window wider
+/// than the z error also stops a peg that a wall holds short of the floor).
+const INSERTION_AXES: [Axis; 7] = [
     axis("insert_n_per_m", 300.0, 5000.0, true),
     axis("insert_z_n_per_m", 500.0, 5000.0, true),
     axis("insert_nm_per_rad", 5.0, 300.0, true),
     axis("insert_damping", 0.3, 1.0, false),
     axis("overshoot_mm", 2.0, 15.0, false),
     axis("seat_force_n", 3.0, 40.0, true),
+    axis("seat_window_mm", 1.0, 10.0, false),
 ];
 
 impl TuneTarget {
@@ -303,6 +305,7 @@ impl Candidate {
                 );
                 s.insertion.overshoot_mm = Some(v("overshoot_mm"));
                 s.insertion.seat_force_n = Some(v("seat_force_n"));
+                s.insertion.seat_window_mm = Some(v("seat_window_mm"));
             }
         }
         s
@@ -323,10 +326,11 @@ impl Candidate {
                 self.get("seat_force_n")
             ),
             TuneTarget::Insertion => format!(
-                "{}\n[insertion]\novershoot_mm = {:.1}\nseat_force_n = {:.1}\n",
+                "{}\n[insertion]\novershoot_mm = {:.1}\nseat_force_n = {:.1}\nseat_window_mm = {:.1}\n",
                 gains_toml("gains.insert", &s.gains.insert),
                 self.get("overshoot_mm"),
-                self.get("seat_force_n")
+                self.get("seat_force_n"),
+                self.get("seat_window_mm")
             ),
         }
     }
@@ -609,6 +613,8 @@ mod tests {
             let snippet = Scenario::parse(&format!("{base}{}", c.snippet(&scenario))).unwrap();
             let over = snippet.insertion.overshoot_mm.unwrap();
             assert!((over - c.get("overshoot_mm")).abs() < 0.051, "{over}");
+            let window = snippet.insertion.seat_window_mm.unwrap();
+            assert!((window - c.get("seat_window_mm")).abs() < 0.051, "{window}");
             let z = snippet.gains.insert.stiffness.unwrap()[2];
             assert!((z - c.get("insert_z_n_per_m")).abs() < 0.51, "{z}");
             assert_eq!(snippet.gains.observe, scenario.gains.observe);

@@ -40,7 +40,6 @@ use crate::replay::Replay;
 use crate::schedule;
 use crate::twin::geometry::PartPair;
 use crate::twin::robot::RobotModel;
-use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -250,14 +249,30 @@ pub fn single_trial(
 pub(crate) type RunOne<'a> = dyn Fn(&Plan, &TrialSpec) -> Result<TrialResult> + Sync + 'a;
 
 /// Runs `trials` in parallel on the current rayon pool and returns their records in the order of
-/// `trials` (for `tune`, which keeps them; a campaign streams them instead, see
-/// [`stream_trials_with`]). A trial that raises an error or panics is recorded with outcome
-/// `error` and its message, and the others go on.
+/// `trials` (for `tune`, `calibrate` and `evaluate`, which keep them; a campaign streams them
+/// instead, see [`stream_trials_with`]). Trials that observe alike share their observation, as
+/// in a campaign, with no replays: each record is the one its trial gives alone, bit for bit. A
+/// trial that raises an error or panics is recorded with outcome `error` and its message, and
+/// the others go on.
 pub fn run_trials(plan: &Plan, trials: &[TrialSpec]) -> Vec<TrialRecord> {
-    trials
-        .par_iter()
-        .map(|spec| guarded_trial(plan, spec, &run_one))
-        .collect()
+    let no_replays = ReplayWriter::new(Path::new(""), Replays::None);
+    let runner = Runner {
+        one: &run_one,
+        sharing: Some(&no_replays),
+    };
+    let done = Mutex::new(Vec::with_capacity(trials.len()));
+    let keep = |r: &TrialRecord| {
+        done.lock().expect("no collector panicked").push(r.clone());
+        Ok(())
+    };
+    stream_trials_with(plan, trials, &runner, &(), &keep)
+        .expect("trials are not stopped and their errors are recorded");
+    let order: BTreeMap<(usize, usize), usize> = (trials.iter().enumerate())
+        .map(|(i, t)| ((t.cell, t.trial), i))
+        .collect();
+    let mut records = done.into_inner().expect("no collector panicked");
+    records.sort_by_key(|r| order[&(r.cell, r.trial)]);
+    records
 }
 
 /// How a campaign runs its trials.
