@@ -456,12 +456,14 @@ impl TuneJournal {
     }
 }
 
-/// An evaluation [`TuneJournal::record`] wrote, if `v` is one.
+/// An evaluation [`TuneJournal::record`] wrote, if `v` is one (with a value for each of the
+/// target's axes: a journal of a search over fewer axes is not one).
 fn evaluation_from_json(v: &serde_json::Value, target: TuneTarget) -> Option<Evaluation> {
     let count = |key: &str| v.get(key)?.as_u64().map(|n| n as usize);
     let values = (v.get("values")?.as_array()?.iter())
         .map(|x| x.as_f64())
-        .collect::<Option<Vec<f64>>>()?;
+        .collect::<Option<Vec<f64>>>()
+        .filter(|v| v.len() == target.axes().len())?;
     let (trials, successes) = (count("trials")?, count("successes")?);
     let peak = v.get("peak_fz_n")?;
     Some(Evaluation {
