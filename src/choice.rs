@@ -85,6 +85,7 @@ mod tests {
         serde_names_agree::<Replays>();
         serde_names_agree::<MeshUnits>();
         serde_names_agree::<crate::method::manifold::cache::Sampler>();
+        serde_names_agree::<crate::method::adaptive::ObservationStop>();
     }
 
     #[test]

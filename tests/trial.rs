@@ -223,12 +223,31 @@ fn an_aligned_insertion_seats_on_the_floor_with_the_seat_force() {
     );
 }
 
-/// The adaptive method stops observing at its first registration when its limits are loose,
-/// and observes its whole budget when they cannot be met; either way it inserts along its last
-/// estimate, and its record holds the cell's `t_obs_s` and the time it observed. Observing its
-/// whole budget, it records the contacts the manifold method records with that budget.
+/// The adaptive observation's settings with every limit at `limit` (m and rad alike).
+fn adaptive_settings(
+    check_from_s: f64,
+    check_every_s: f64,
+    limit: f64,
+    stop_out_of_reach: bool,
+) -> pegtwin::method::config::AdaptiveConfig {
+    pegtwin::method::config::AdaptiveConfig {
+        check_from_s,
+        check_every_s,
+        max_std_xy_m: Some(limit),
+        max_std_tilt_rad: Some(limit),
+        max_std_yaw_rad: Some(limit),
+        stop_out_of_reach,
+    }
+}
+
+/// The adaptive method stops observing at its first registration when its limits are loose;
+/// when they cannot be met, at its second (out of reach), or, told not to stop so, at the end of
+/// its budget. Either way it inserts along its last estimate, and its record holds the cell's
+/// `t_obs_s`, the time it observed and why it stopped. Observing its whole budget, it records
+/// the contacts the manifold method records with that budget.
 #[test]
 fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
+    use pegtwin::method::adaptive::ObservationStop;
     use pegtwin::method::config::AdaptiveConfig;
     let dir = tempfile::tempdir().unwrap();
     let m = pegtwin::method::manifold::file::load(&small_manifold(dir.path(), 0.5e-3)).unwrap();
@@ -237,20 +256,15 @@ fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
     let run = |config: &TrialConfig| {
         run_trial(&cross(0.5e-3), &robot, &params, config, Some(&m), 5, None).unwrap()
     };
-    let adaptive = |limit: f64| TrialConfig {
+    let adaptive = |limit: f64, stop_out_of_reach: bool| TrialConfig {
         method: Method::Adaptive,
         t_obs_s: 5.0,
-        adaptive: AdaptiveConfig {
-            check_from_s: 2.0,
-            check_every_s: 1.0,
-            max_std_xy_m: Some(limit),
-            max_std_tilt_rad: Some(limit),
-            max_std_yaw_rad: Some(limit),
-        },
+        adaptive: adaptive_settings(2.0, 1.0, limit, stop_out_of_reach),
         ..TrialConfig::default()
     };
-    let loose = run(&adaptive(1.0));
+    let loose = run(&adaptive(1.0, true));
     assert_eq!((loose.observation_s, loose.t_obs_s), (Some(2.0), 5.0));
+    assert_eq!(loose.observation_stop, Some(ObservationStop::Certain));
     assert_eq!(loose.method, Method::Adaptive);
     assert!(
         (loose.times.observe_s - 2.0).abs() < 2e-3,
@@ -259,15 +273,26 @@ fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
     );
     assert!(loose.estimate.is_some() && loose.final_depth_mm.is_some());
 
-    let strict = run(&adaptive(1e-12));
+    let unreachable = run(&adaptive(1e-12, true));
+    assert_eq!(unreachable.observation_s, Some(3.0));
+    assert_eq!(
+        unreachable.observation_stop,
+        Some(ObservationStop::OutOfReach)
+    );
+    let strict = run(&adaptive(1e-12, false));
     assert_eq!(strict.observation_s, Some(5.0));
+    assert_eq!(strict.observation_stop, Some(ObservationStop::Budget));
     let manifold = run(&TrialConfig {
         t_obs_s: 5.0,
         ..TrialConfig::default()
     });
-    assert_eq!(manifold.observation_s, None);
+    assert_eq!(
+        (manifold.observation_s, manifold.observation_stop),
+        (None, None)
+    );
     assert_eq!(strict.contact_observations, manifold.contact_observations);
-    assert!(loose.contact_observations < strict.contact_observations);
+    assert!(loose.contact_observations < unreachable.contact_observations);
+    assert!(unreachable.contact_observations < strict.contact_observations);
 
     // A limit that is not positive is refused, by name.
     let bad = TrialConfig {
@@ -275,7 +300,7 @@ fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
             check_every_s: 0.0,
             ..AdaptiveConfig::default()
         },
-        ..adaptive(1.0)
+        ..adaptive(1.0, true)
     };
     let err = run_trial(&cross(0.5e-3), &robot, &params, &bad, Some(&m), 5, None).unwrap_err();
     assert!(err.to_string().contains("check_every_s"), "{err}");
@@ -283,11 +308,10 @@ fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
 
 /// The active method observes as the adaptive one up to its first check, then widens the motion
 /// on the axes its estimate knows least: with loose limits the two stop there with the same
-/// contacts; with limits they cannot meet, the active one records other contacts, and so
-/// estimates otherwise.
+/// contacts; with limits they cannot meet (observing to the end of the budget), the active one
+/// records other contacts, and so estimates otherwise.
 #[test]
 fn the_active_method_widens_the_motion_after_its_first_check() {
-    use pegtwin::method::config::AdaptiveConfig;
     let dir = tempfile::tempdir().unwrap();
     let m = pegtwin::method::manifold::file::load(&small_manifold(dir.path(), 0.5e-3)).unwrap();
     let robot = pegtwin::twin::robot::urdf::iiwa14().unwrap();
@@ -296,13 +320,7 @@ fn the_active_method_widens_the_motion_after_its_first_check() {
         let config = TrialConfig {
             method,
             t_obs_s: 5.0,
-            adaptive: AdaptiveConfig {
-                check_from_s: 4.0,
-                check_every_s: 0.5,
-                max_std_xy_m: Some(limit),
-                max_std_tilt_rad: Some(limit),
-                max_std_yaw_rad: Some(limit),
-            },
+            adaptive: adaptive_settings(4.0, 0.5, limit, false),
             ..TrialConfig::default()
         };
         run_trial(&cross(0.5e-3), &robot, &params, &config, Some(&m), 5, None).unwrap()

@@ -73,7 +73,8 @@ def trial(
         t_obs_s: observation time, s.
         method: ``manifold`` (the paper's method), ``direct`` (its baseline), ``adaptive``
             (the paper's method observing until its estimate is certain enough, at most
-            ``t_obs``; the record's ``observation_s`` says how long) or ``active`` (adaptive,
+            ``t_obs``; the record's ``observation_s`` says how long and ``observation_stop``
+            why: ``certain``, ``out_of_reach``, ``budget`` or ``fault``) or ``active`` (adaptive,
             widening the motion on the axes it knows least).
         start: ``partial`` (partially inserted, the paper's set-up) or ``above`` (search first).
         offset_mm: half-range of the hole's position offset, mm.

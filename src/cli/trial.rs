@@ -222,7 +222,8 @@ fn print_result(r: &TrialResult) {
         );
     }
     if let Some(t) = r.observation_s {
-        println!("observed {t} s of at most {} s (adaptive)", r.t_obs_s);
+        let why = (r.observation_stop).map_or(String::new(), |s| format!(" ({})", s.name()));
+        println!("observed {t} s of at most {} s{why}", r.t_obs_s);
     }
     if let Some(std) = r.estimate_std {
         let s = pegtwin::pose::Pose6(std).to_mm_deg();

@@ -15,10 +15,58 @@
 //! ([`crate::method::register::uncertainty`]), the error then lies within the tolerance in about
 //! 95 % of trials. z is not limited: the insertion overshoots the believed floor and stops on a
 //! seat force (IV-E, V-B).
+//!
+//! A limit may also be out of reach: the standard deviations shrink about as 1/sqrt(t) from a
+//! start the real cell makes wide, and on about half the paper scenario's trials the tilt's does
+//! not meet its limit within the longest budget. The observation then stops when the trend of an
+//! axis still above its limit says it would not meet it by then ([`StopRule::out_of_reach`]), a
+//! futility stop as in a sequential trial.
 
+use crate::choice::{Choice, Named};
 use crate::method::config::AdaptiveConfig;
 use crate::method::primitives::Probe;
 use crate::twin::geometry::{HOLE_ENTRY_CHAMFER_M, PEG_TIP_CHAMFER_M, PartPair};
+use serde::{Deserialize, Serialize};
+
+/// Why an adaptive observation stopped, in its record (`observation_stop`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ObservationStop {
+    /// Every standard deviation within its limit ([`StopRule::met`]).
+    Certain,
+    /// A limit out of reach by the longest budget ([`StopRule::out_of_reach`]).
+    OutOfReach,
+    /// The longest budget ran out.
+    Budget,
+    /// The trial could not go on observing: a physics fault.
+    Fault,
+}
+
+impl Choice for ObservationStop {
+    const WHAT: &'static str = "observation stop";
+    const NAMED: &'static [Named<Self>] = &[
+        Named {
+            name: "certain",
+            value: ObservationStop::Certain,
+            help: "every standard deviation of the estimate within its limit",
+        },
+        Named {
+            name: "out_of_reach",
+            value: ObservationStop::OutOfReach,
+            help: "a standard deviation that, by its trend, would not meet its limit in time",
+        },
+        Named {
+            name: "budget",
+            value: ObservationStop::Budget,
+            help: "the longest observation ran out",
+        },
+        Named {
+            name: "fault",
+            value: ObservationStop::Fault,
+            help: "a physics fault stopped the trial",
+        },
+    ];
+}
 
 /// The paper's critical orientation error (Fig. 5), rad.
 pub const CRITICAL_TILT_RAD: f64 = 2.5 * std::f64::consts::PI / 180.0;
@@ -50,6 +98,28 @@ impl StopRule {
     /// Whether an estimate with standard deviations `std` is certain enough to insert.
     pub fn met(&self, std: &[f64; 6]) -> bool {
         std.iter().zip(&self.max_std).all(|(s, max)| s <= max)
+    }
+
+    /// Whether an axis still above its limit at `now` (time s, standard deviations) would not
+    /// meet it by `t_max_s`, by the trend since the check `before`: a power of time through
+    /// both, `std(t) = std(now) (t / t_now)^-p` (p = 1/2 for independent observations), or its
+    /// present value where it did not shrink.
+    pub fn out_of_reach(
+        &self,
+        before: (f64, &[f64; 6]),
+        now: (f64, &[f64; 6]),
+        t_max_s: f64,
+    ) -> bool {
+        let ((t0, s0), (t1, s1)) = (before, now);
+        (0..6).any(|i| {
+            let projected = if s1[i] < s0[i] && t1 > t0 {
+                let p = (s0[i] / s1[i]).ln() / (t1 / t0).ln();
+                s1[i] * (t1 / t_max_s).powf(p)
+            } else {
+                s1[i]
+            };
+            s1[i] > self.max_std[i] && projected > self.max_std[i]
+        })
     }
 
     /// The motion group whose axes stand furthest above their limits, as a share of the limit
@@ -132,6 +202,34 @@ mod tests {
         assert_eq!(StopRule::for_pair(&cross, &set).max_std[0], 1e-4);
         assert!(rule.met(&[1e-4, 1e-4, 1.0, 0.01, 0.01, 0.001]));
         assert!(!rule.met(&[1e-3, 1e-4, 1.0, 0.01, 0.01, 0.001]));
+    }
+
+    #[test]
+    fn a_limit_is_out_of_reach_when_its_trend_misses_it_by_the_longest_budget() {
+        let rule = StopRule {
+            max_std: [1e-4, 1e-4, f64::INFINITY, 0.01, 0.01, 0.002],
+        };
+        let ok = [1e-4, 1e-4, 1.0, 0.01, 0.01, 0.002];
+        let with = |i: usize, v: f64| {
+            let mut s = ok;
+            s[i] = v;
+            s
+        };
+        // Roll at 2x its limit at 4 s: shrinking as 1/sqrt(t) it reaches 0.02 * sqrt(4/10) =
+        // 1.26x by 10 s (out of reach); as 1/t, 0.8x (within reach).
+        let sqrt = with(3, 0.02);
+        let before = with(3, 0.02 * (4.0f64 / 3.0).sqrt());
+        assert!(rule.out_of_reach((3.0, &before), (4.0, &sqrt), 10.0));
+        let fast = with(3, 0.02 * 4.0 / 3.0);
+        assert!(!rule.out_of_reach((3.0, &fast), (4.0, &sqrt), 10.0));
+        // Not shrinking: out of reach; an axis within its limit, or z, never is.
+        assert!(rule.out_of_reach((3.0, &sqrt), (4.0, &sqrt), 10.0));
+        assert!(!rule.out_of_reach((3.0, &ok), (4.0, &ok), 10.0));
+        let z = with(2, 5.0);
+        assert!(!rule.out_of_reach((3.0, &z), (4.0, &z), 10.0));
+        // At the longest budget the trend is the present value.
+        assert!(rule.out_of_reach((9.0, &fast), (10.0, &with(3, 0.011)), 10.0));
+        assert!(!rule.out_of_reach((9.0, &fast), (10.0, &with(3, 0.009)), 10.0));
     }
 
     #[test]

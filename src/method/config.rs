@@ -168,8 +168,9 @@ pub struct TrialConfig {
 /// The adaptive method's observation (issue "know when you know"; docs/method.md, "Observation
 /// that stops itself"): it registers the observations so far every `check_every_s` from
 /// `check_from_s` on, each registration starting from the previous estimate, and stops when every
-/// standard deviation of the estimate is within its limit. The limits default to what the
-/// insertion tolerates (`method::adaptive::StopRule`); each can be set here instead.
+/// standard deviation of the estimate is within its limit, or when one would not be by `t_obs_s`.
+/// The limits default to what the insertion tolerates (`method::adaptive::StopRule`); each can be
+/// set here instead.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct AdaptiveConfig {
@@ -186,16 +187,21 @@ pub struct AdaptiveConfig {
     /// Largest standard deviation of yaw to stop at, rad (default: from the clearance, the
     /// chamfers and the peg's size).
     pub max_std_yaw_rad: Option<f64>,
+    /// Whether it also stops when the trend of its standard deviations says a limit would still
+    /// not be met at `t_obs_s` (`StopRule::out_of_reach`): observing on would not make it
+    /// certain enough.
+    pub stop_out_of_reach: bool,
 }
 
 impl Default for AdaptiveConfig {
     fn default() -> Self {
         AdaptiveConfig {
             check_from_s: 4.0,
-            check_every_s: 1.0,
+            check_every_s: 0.5,
             max_std_xy_m: None,
             max_std_tilt_rad: None,
             max_std_yaw_rad: None,
+            stop_out_of_reach: true,
         }
     }
 }

@@ -11,8 +11,9 @@
 //! and the initial partial insertion, as the experimenters placed them) and scores it here; it
 //! never reaches a stage.
 
+use crate::choice::Choice;
 use crate::error::{Error, Result};
-use crate::method::adaptive::StopRule;
+use crate::method::adaptive::{ObservationStop, StopRule};
 use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::insert::{InsertEnd, Insertion, insert};
 use crate::method::manifold::Manifold;
@@ -66,17 +67,20 @@ fn run_adaptive_trial(
     seed: u64,
     mut recorder: Option<&mut dyn Recorder>,
 ) -> Result<TrialResult> {
-    let manifold = manifold
-        .ok_or_else(|| Error::Input("the adaptive method needs a reference manifold".into()))?;
+    let manifold = manifold.ok_or_else(|| {
+        let method = config.method.name();
+        Error::Input(format!("the {method} method needs a reference manifold"))
+    })?;
     let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
     let mut observing = ObservingTrial::start(pair, robot, params, config, seed, looking)?;
     let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
-    let registration = observing.observe_adaptively(pair, manifold, looking)?;
+    let (registration, stop) = observing.observe_adaptively(pair, manifold, looking)?;
     let observed = observing.into_observed_at_budget();
     let at_stop = observed.config.clone();
     let estimator = Estimator::Given(registration.map(Box::new));
     let mut result = finish(observed, pair, &at_stop, estimator, recorder)?;
     result.observation_s = Some(at_stop.t_obs_s);
+    result.observation_stop = stop;
     result.t_obs_s = config.t_obs_s;
     Ok(result)
 }
@@ -115,6 +119,9 @@ pub fn observe_trial(
     observing.observe_until(config.t_obs_s, recorder);
     Ok(observing.into_observed())
 }
+
+/// A registration and its wall time, s.
+pub type TimedRegistration = (Registration, f64);
 
 /// A trial between its approach and the end of its observation, which can stop at several
 /// budgets: the trials of a `t_obs` sweep that observe alike but for their budget
@@ -218,25 +225,28 @@ impl ObservingTrial {
     /// The observation of the adaptive method (docs/method.md, "Observation that stops itself"):
     /// from `check_from_s` on and every `check_every_s`, it registers the observations so far,
     /// starting from the last estimate (the believed hole at first), and stops as soon as the
-    /// estimate's standard deviations meet [`StopRule`], or at the longest budget (`t_obs_s`).
-    /// The active method also widens, after each check, the motion group its estimate knows
-    /// least ([`StopRule::weakest`], [`ObservationPhase::widen`]). Returns the registration of
-    /// the observation it stopped with (none when too few contacts were recorded to register, or
-    /// when the trial stopped before observing) and its wall time.
+    /// estimate's standard deviations meet [`StopRule`], as soon as one is out of reach by the
+    /// longest budget ([`StopRule::out_of_reach`], unless turned off), or at that budget
+    /// (`t_obs_s`). The active method also widens, after each check, the motion group its
+    /// estimate knows least ([`StopRule::weakest`], [`ObservationPhase::widen`]). Returns the
+    /// registration of the observation it stopped with (none when too few contacts were recorded
+    /// to register, or when the trial stopped before observing) and its wall time, and why it
+    /// stopped (none when it never observed).
     pub fn observe_adaptively(
         &mut self,
         pair: &PartPair,
         manifold: &Manifold,
         mut recorder: Option<&mut dyn Recorder>,
-    ) -> Result<Option<(Registration, f64)>> {
+    ) -> Result<(Option<TimedRegistration>, Option<ObservationStop>)> {
         let config = self.trial.config.clone();
         let rule = StopRule::for_pair(pair, &config.adaptive);
         let mut t = config.adaptive.check_from_s.min(config.t_obs_s);
-        let mut last: Option<(Registration, f64)> = None;
+        let mut last: Option<TimedRegistration> = None;
+        let mut before: Option<(f64, [f64; 6])> = None;
         loop {
             self.observe_until(t, recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder));
             let Some(believed) = self.trial.believed else {
-                return Ok(None);
+                return Ok((None, None));
             };
             let init = last.as_ref().map_or(believed, |(r, _)| r.estimate.to_iso());
             let observations = self.observation().downsampled(config.observations);
@@ -245,16 +255,45 @@ impl ObservingTrial {
                 (Some(registration), wall_s) => Some((registration, wall_s)),
                 (None, _) => None,
             };
-            let certain = (last.as_ref()).is_some_and(|(r, _)| rule.met(&r.estimate_std));
-            if certain || t >= config.t_obs_s || self.trial.fault.is_some() {
-                return Ok(last);
+            let std = last.as_ref().map(|(r, _)| r.estimate_std);
+            if let Some(stop) = self.stop_after_check(&rule, t, std, before) {
+                return Ok((last, Some(stop)));
             }
-            if let (Method::Active, Some((r, _)), Some(phase)) =
-                (config.method, &last, &mut self.observation_phase)
+            if let (Method::Active, Some(std), Some(phase)) =
+                (config.method, std, &mut self.observation_phase)
             {
-                phase.widen(rule.weakest(&r.estimate_std));
+                phase.widen(rule.weakest(&std));
             }
+            before = std.map(|s| (t, s));
             t = (t + config.adaptive.check_every_s).min(config.t_obs_s);
+        }
+    }
+
+    /// Whether the adaptive observation stops after its check at `t` (s), whose estimate has the
+    /// standard deviations `std` (none: too few contacts to register), and why; `before` is the
+    /// previous check's.
+    fn stop_after_check(
+        &self,
+        rule: &StopRule,
+        t: f64,
+        std: Option<[f64; 6]>,
+        before: Option<(f64, [f64; 6])>,
+    ) -> Option<ObservationStop> {
+        let config = &self.trial.config;
+        let out_of_reach = |std: &[f64; 6]| {
+            let before = before.filter(|_| config.adaptive.stop_out_of_reach);
+            before.is_some_and(|(t0, s0)| rule.out_of_reach((t0, &s0), (t, std), config.t_obs_s))
+        };
+        if self.trial.fault.is_some() {
+            Some(ObservationStop::Fault)
+        } else if std.as_ref().is_some_and(|s| rule.met(s)) {
+            Some(ObservationStop::Certain)
+        } else if t >= config.t_obs_s {
+            Some(ObservationStop::Budget)
+        } else if std.as_ref().is_some_and(out_of_reach) {
+            Some(ObservationStop::OutOfReach)
+        } else {
+            None
         }
     }
 
@@ -430,6 +469,10 @@ pub struct TrialResult {
     /// absent for the other methods, which observe for `t_obs_s`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub observation_s: Option<f64>,
+    /// Why the adaptive method stopped observing: `certain`, `out_of_reach`, `budget` or
+    /// `fault` (docs/method.md); absent for the other methods.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub observation_stop: Option<ObservationStop>,
     /// Estimated `base_T_hole` (m, rad), manifold method only.
     pub estimate: Option<[f64; 6]>,
     /// The standard deviation of the estimate's error per axis, in the estimated hole frame
@@ -588,6 +631,7 @@ impl Setup {
             fault,
             error_message: None,
             observation_s: None,
+            observation_stop: None,
             estimate: None,
             estimate_std: None,
             estimate_covariance: None,

@@ -641,16 +641,21 @@ methods = ["manifold", "direct"]
             (Method::Adaptive, 10.0)
         );
         let set = format!(
-            "{text}\n[adaptive]\nt_obs_max_s = 8.0\ncheck_from_s = 3.0\nmax_std_xy_mm = 0.2\n"
+            "{text}\n[adaptive]\nt_obs_max_s = 8.0\ncheck_from_s = 3.0\nmax_std_xy_mm = 0.2\n\
+             stop_out_of_reach = false\n"
         );
         let s = Scenario::parse(&set).unwrap();
         let cell = &s.cells()[2];
         assert_eq!(cell.t_obs_s, 8.0);
         let a = s.trial_config(cell).adaptive;
         assert_eq!((a.check_from_s, a.max_std_xy_m), (3.0, Some(2e-4)));
-        assert_eq!(a.max_std_yaw_rad, None);
+        assert_eq!((a.max_std_yaw_rad, a.stop_out_of_reach), (None, false));
         // The manifold method's cells keep their settings.
-        assert_eq!(s.trial_config(&s.cells()[0]).adaptive.check_from_s, 4.0);
+        let manifold = s.trial_config(&s.cells()[0]).adaptive;
+        assert_eq!(
+            (manifold.check_from_s, manifold.stop_out_of_reach),
+            (4.0, true)
+        );
         for (bad, field) in [
             ("max_std_xy_mm = 0.0", "adaptive.max_std_xy_mm"),
             ("check_from_s = 12.0", "adaptive.check_from_s"),

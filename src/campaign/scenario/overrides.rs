@@ -223,6 +223,9 @@ pub struct AdaptiveOverride {
     pub max_std_tilt_deg: Option<f64>,
     /// ... and in yaw at most this, deg.
     pub max_std_yaw_deg: Option<f64>,
+    /// Whether it also stops when a limit is out of reach by `t_obs_max_s` (default true).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop_out_of_reach: Option<bool>,
 }
 
 /// The adaptive method's longest observation unless set, s: the paper's longest t_obs.
@@ -246,6 +249,7 @@ impl AdaptiveOverride {
         a.max_std_xy_m = self.max_std_xy_mm.map(|v| v * 1e-3).or(a.max_std_xy_m);
         a.max_std_tilt_rad = (self.max_std_tilt_deg.map(f64::to_radians)).or(a.max_std_tilt_rad);
         a.max_std_yaw_rad = (self.max_std_yaw_deg.map(f64::to_radians)).or(a.max_std_yaw_rad);
+        a.stop_out_of_reach = self.stop_out_of_reach.unwrap_or(a.stop_out_of_reach);
     }
 
     /// Refuses a value out of range, naming the field.
