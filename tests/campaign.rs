@@ -418,8 +418,11 @@ fn tune_writes_its_table_and_prints_a_usable_snippet() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let table = std::fs::read_to_string(out.join("tune.csv")).unwrap();
-    // Rung 0: 3 candidates x 1 trial per cell; rung 1: the best one x 2.
-    assert_eq!(table.lines().count(), 1 + 3 + 1, "{table}");
+    // Rung 0: 3 candidates and the scenario's own settings x 1 trial per cell; rung 1: the best
+    // two x 2.
+    assert_eq!(table.lines().count(), 1 + 4 + 2, "{table}");
+    let own: Vec<&str> = table.lines().filter(|l| l.contains(",3,true,")).collect();
+    assert!(own[0].starts_with("0,1,3,true,"), "{table}");
     assert!(out.join("figures/tune.png").is_file());
     let stdout = String::from_utf8_lossy(&o.stdout);
     let snippet = &stdout[stdout.find("[gains.observe]").expect("snippet printed")..];

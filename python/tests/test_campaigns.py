@@ -74,7 +74,9 @@ def test_evaluate_runs_a_range_of_the_campaigns_trials_with_overrides(
 def test_tune_writes_its_table(scenario: Path, tmp_path: Path) -> None:
     table = pegtwin.tune(scenario, tmp_path / "tune", candidates=2, first_trials=1,
                          cache_dir=tmp_path / "cache")
-    assert len(table) == 2 + 1  # rung 0: two candidates x 1 trial; rung 1: the best x 2
+    # rung 0: two candidates and the scenario's own settings x 1 trial; rung 1: the best x 2
+    assert len(table) == 3 + 1
+    assert table["incumbent"].sum() >= 1
     assert "[gains.insert]" in table.attrs["snippet"]
     assert (tmp_path / "tune" / "tune-journal.jsonl").is_file()
     with pytest.raises(ValueError, match="resume"):

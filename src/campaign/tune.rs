@@ -11,6 +11,11 @@
 //!
 //! Score: success rate first, then the mean peak |Fz| of the successes (lower is better).
 //!
+//! The scenario's own settings run beside the hypercube as one more candidate, the incumbent
+//! (the last id), as Optuna's `enqueue_trial` seeds a study with the known point: a search
+//! returns them, not a worse point, when none of the drawn candidates beats them, and a tie goes
+//! to them.
+//!
 //! Ranges (within KUKA Sunrise's: 0-5000 N/m, 0-300 N m/rad, damping 0.1-1.0): observation
 //! translational stiffness 300-3000 N/m (x, y; z 1.5 x), rotational 2-50 N m/rad, damping 0.3-1.0;
 //! insertion translational 300-5000 N/m (x, y; z 2000 N/m kept), rotational 10-300 N m/rad,
@@ -25,7 +30,8 @@ use crate::campaign::run::{
 use crate::campaign::scenario::{GainsOverride, Scenario};
 use crate::choice::{Choice, Named};
 use crate::error::{Error, Result};
-use crate::method::config::Method;
+use crate::method::config::{Method, TrialConfig};
+use crate::twin::control::ImpedanceGains;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -151,6 +157,9 @@ pub struct Candidate {
     pub target: TuneTarget,
     /// The value of each of the target's axes, in their order.
     pub values: Vec<f64>,
+    /// The scenario's own settings ([`incumbent`]): they run as the scenario has them (their
+    /// `values` only read them), whatever form its gains take.
+    pub incumbent: bool,
 }
 
 /// One evaluation of a candidate at a rung.
@@ -238,8 +247,53 @@ pub fn candidates(n: usize, seed: u64, target: TuneTarget) -> Vec<Candidate> {
                     }
                 })
                 .collect(),
+            incumbent: false,
         })
         .collect()
+}
+
+/// The configuration of the cells a target tunes, as `scenario` sets them: its first cell of the
+/// target's method (for [`TuneTarget::Gains`], its first that registers, or else its first).
+fn tuned_config(scenario: &Scenario, target: TuneTarget) -> TrialConfig {
+    let cells = scenario.cells();
+    let wanted = |m: Method| target.only_method().map_or(m != Method::Direct, |t| t == m);
+    let cell = (cells.iter())
+        .find(|c| wanted(c.method))
+        .or(cells.first())
+        .expect("a valid scenario has cells");
+    scenario.trial_config(cell)
+}
+
+/// The value of the axis `name` in a trial configuration.
+fn setting(c: &TrialConfig, name: &str) -> f64 {
+    let (obs, ins) = (&c.observe_gains, &c.insert_gains);
+    match name {
+        "observe_n_per_m" => obs.stiffness[0],
+        "observe_nm_per_rad" => obs.stiffness[3],
+        "observe_damping" => obs.damping_ratio[0],
+        "insert_n_per_m" => ins.stiffness[0],
+        "insert_z_n_per_m" => ins.stiffness[2],
+        "insert_nm_per_rad" => ins.stiffness[3],
+        "insert_damping" => ins.damping_ratio[0],
+        "overshoot_mm" => c.insert_overshoot_m * 1e3,
+        "seat_force_n" => c.insert_seat_force_n,
+        "seat_window_mm" => c.insert_seat_window_m * 1e3,
+        _ => unreachable!("every axis has a setting: {name}"),
+    }
+}
+
+/// The incumbent: the scenario's own settings, as candidate `id` (its `values` are read from
+/// the cells the target tunes; x's stiffness and damping stand for a phase's).
+pub fn incumbent(scenario: &Scenario, target: TuneTarget, id: usize) -> Candidate {
+    let config = tuned_config(scenario, target);
+    Candidate {
+        id,
+        target,
+        values: (target.axes().iter())
+            .map(|a| setting(&config, a.name))
+            .collect(),
+        incumbent: true,
+    }
 }
 
 /// Sets the diagonal stiffness (x, y translational, z, rotational) and one damping ratio of a
@@ -249,13 +303,13 @@ fn set_gains(g: &mut GainsOverride, t: f64, tz: f64, r: f64, d: f64) {
     g.damping_ratio = Some([d; 6]);
 }
 
-/// A `[section]` of diagonal gains as TOML.
-fn gains_toml(section: &str, g: &GainsOverride) -> String {
-    let [t, _, tz, r, ..] = g.stiffness.expect("tuned gains have stiffness");
-    let d = g.damping_ratio.expect("tuned gains have damping")[0];
+/// A `[section]` of gains as TOML.
+fn gains_toml(section: &str, g: &ImpedanceGains) -> String {
+    let [x, y, z, a, b, c] = g.stiffness;
+    let d = g.damping_ratio.map(|d| format!("{d:.2}")).join(", ");
     format!(
-        "[{section}]\nstiffness = [{t:.0}, {t:.0}, {tz:.0}, {r:.1}, {r:.1}, {r:.1}]\n\
-         damping_ratio = [{d:.2}, {d:.2}, {d:.2}, {d:.2}, {d:.2}, {d:.2}]\n"
+        "[{section}]\nstiffness = [{x:.0}, {y:.0}, {z:.0}, {a:.1}, {b:.1}, {c:.1}]\n\
+         damping_ratio = [{d}]\n"
     )
 }
 
@@ -267,9 +321,15 @@ impl Candidate {
     }
 
     /// The scenario with this candidate's settings (other overrides of the scenario kept); for
-    /// the direct target, only its direct cells.
+    /// the direct and insertion targets, only the cells they tune.
     pub fn apply(&self, scenario: &Scenario) -> Scenario {
         let mut s = scenario.clone();
+        if let Some(method) = self.target.only_method() {
+            s.methods = vec![method];
+        }
+        if self.incumbent {
+            return s;
+        }
         let v = |name| self.get(name);
         match self.target {
             TuneTarget::Gains => {
@@ -284,7 +344,6 @@ impl Candidate {
                 set_gains(&mut s.gains.insert, i, 2000.0, r, d);
             }
             TuneTarget::Direct => {
-                s.methods = vec![Method::Direct];
                 set_gains(
                     &mut s.direct.gains.insert,
                     v("insert_n_per_m"),
@@ -295,7 +354,6 @@ impl Candidate {
                 s.direct.insertion.seat_force_n = Some(v("seat_force_n"));
             }
             TuneTarget::Insertion => {
-                s.methods = vec![Method::Manifold];
                 set_gains(
                     &mut s.gains.insert,
                     v("insert_n_per_m"),
@@ -311,32 +369,35 @@ impl Candidate {
         s
     }
 
-    /// The candidate's settings as a scenario snippet.
+    /// The candidate's settings as a scenario snippet: the gains and settings the tuned cells
+    /// run with under it (the incumbent's: the scenario's own, written out).
     pub fn snippet(&self, scenario: &Scenario) -> String {
-        let s = self.apply(scenario);
+        let c = tuned_config(&self.apply(scenario), self.target);
+        let v = |name| setting(&c, name);
         match self.target {
             TuneTarget::Gains => format!(
                 "{}\n{}",
-                gains_toml("gains.observe", &s.gains.observe),
-                gains_toml("gains.insert", &s.gains.insert)
+                gains_toml("gains.observe", &c.observe_gains),
+                gains_toml("gains.insert", &c.insert_gains)
             ),
             TuneTarget::Direct => format!(
                 "{}\n[direct.insertion]\nseat_force_n = {:.1}\n",
-                gains_toml("direct.gains.insert", &s.direct.gains.insert),
-                self.get("seat_force_n")
+                gains_toml("direct.gains.insert", &c.insert_gains),
+                v("seat_force_n")
             ),
             TuneTarget::Insertion => format!(
                 "{}\n[insertion]\novershoot_mm = {:.1}\nseat_force_n = {:.1}\nseat_window_mm = {:.1}\n",
-                gains_toml("gains.insert", &s.gains.insert),
-                self.get("overshoot_mm"),
-                self.get("seat_force_n"),
-                self.get("seat_window_mm")
+                gains_toml("gains.insert", &c.insert_gains),
+                v("overshoot_mm"),
+                v("seat_force_n"),
+                v("seat_window_mm")
             ),
         }
     }
 }
 
-/// Orders evaluations best first: success rate, then lower peak force, then id.
+/// Orders evaluations best first: success rate, then lower peak force, then the incumbent, then
+/// id.
 fn rank(evals: &mut [Evaluation]) {
     let fz = |e: &Evaluation| {
         if e.peak_fz_n.is_nan() {
@@ -349,6 +410,7 @@ fn rank(evals: &mut [Evaluation]) {
         b.success_rate
             .total_cmp(&a.success_rate)
             .then(fz(a).total_cmp(&fz(b)))
+            .then(b.candidate.incumbent.cmp(&a.candidate.incumbent))
             .then(a.candidate.id.cmp(&b.candidate.id))
     });
 }
@@ -409,6 +471,7 @@ impl TuneJournal {
             "first_trials": options.first_trials,
             "seed": options.seed,
             "target": options.target.name(),
+            "incumbent": true,
         });
         let (journal, entries) = Journal::open(&dir.join(TUNE_JOURNAL), &header, resume)?;
         let known = (entries.iter())
@@ -449,6 +512,7 @@ impl TuneJournal {
             "trials_per_cell": e.trials_per_cell,
             "id": e.candidate.id,
             "values": e.candidate.values,
+            "incumbent": e.candidate.incumbent,
             "trials": e.trials,
             "successes": e.successes,
             "peak_fz_n": (!e.peak_fz_n.is_nan()).then_some(e.peak_fz_n),
@@ -473,6 +537,7 @@ fn evaluation_from_json(v: &serde_json::Value, target: TuneTarget) -> Option<Eva
             id: count("id")?,
             target,
             values,
+            incumbent: v.get("incumbent")?.as_bool()?,
         },
         trials,
         successes,
@@ -513,6 +578,7 @@ pub fn tune(
     let every_cell: Vec<usize> = (0..probe.cells().len()).collect();
     let prepared = prepare(&probe, &every_cell, run)?;
     let mut alive = candidates(options.candidates, options.seed, options.target);
+    alive.push(incumbent(scenario, options.target, options.candidates));
     let mut trials = options.first_trials.min(scenario.trials);
     let mut out = Vec::new();
     for rung in 0.. {
@@ -548,7 +614,7 @@ pub fn tune(
 pub fn evaluations_csv(evals: &[Evaluation]) -> Vec<u8> {
     let mut w = csv::Writer::from_writer(Vec::new());
     let axes = evals.first().map_or(&[][..], |e| e.candidate.target.axes());
-    let head = ["rung", "trials_per_cell", "candidate"].into_iter();
+    let head = ["rung", "trials_per_cell", "candidate", "incumbent"].into_iter();
     let tail = ["trials", "successes", "success_rate", "peak_fz_n"].into_iter();
     w.write_record(head.chain(axes.iter().map(|a| a.name)).chain(tail))
         .expect("in-memory csv");
@@ -563,6 +629,7 @@ pub fn evaluations_csv(evals: &[Evaluation]) -> Vec<u8> {
         let row = [e.rung, e.trials_per_cell, c.id]
             .map(|n| n.to_string())
             .into_iter()
+            .chain([c.incumbent.to_string()])
             .chain(values)
             .chain([
                 e.trials.to_string(),
@@ -621,5 +688,63 @@ mod tests {
             assert!((z - c.get("insert_z_n_per_m")).abs() < 0.51, "{z}");
             assert_eq!(snippet.gains.observe, scenario.gains.observe);
         }
+    }
+
+    /// The incumbent runs the scenario as it is, reads its settings, and its snippet writes them
+    /// out: pasted into the scenario, the tuned cells run as before.
+    #[test]
+    fn the_incumbent_is_the_scenario_as_it_is() {
+        let head = "name = \"t\"\ntrials = 1\ngeometries = [\"cross\"]\nclearances_mm = [0.5]\nt_obs_s = [6.0]\nmethods = [\"manifold\", \"direct\"]\n";
+        let own_gains = "[gains.insert]\nstiffness = [1000, 1200, 2000, 30, 40, 50]\n";
+        let scenario = Scenario::parse(&format!("{head}{own_gains}")).unwrap();
+        for target in [TuneTarget::Gains, TuneTarget::Direct, TuneTarget::Insertion] {
+            let own = incumbent(&scenario, target, 9);
+            assert!(own.incumbent && own.id == 9);
+            let applied = own.apply(&scenario);
+            let pasted = Scenario::parse(&format!("{head}{}", own.snippet(&scenario))).unwrap();
+            for cell in applied.cells() {
+                let before = scenario.trial_config(&cell);
+                let (as_is, from_snippet) =
+                    (applied.trial_config(&cell), pasted.trial_config(&cell));
+                assert_eq!(as_is.insert_gains, before.insert_gains, "{target:?}");
+                assert_eq!(as_is.observe_gains, before.observe_gains, "{target:?}");
+                let close = |a: &[f64; 6], b: &[f64; 6]| {
+                    a.iter()
+                        .zip(b)
+                        .all(|(a, b)| (a - b).abs() <= 0.05 + 0.005 * b.abs())
+                };
+                let (p, b) = (&from_snippet.insert_gains, &before.insert_gains);
+                assert!(close(&p.stiffness, &b.stiffness), "{target:?}: {p:?}");
+                assert!(close(&p.damping_ratio, &b.damping_ratio), "{target:?}");
+            }
+        }
+        let own = incumbent(&scenario, TuneTarget::Gains, 0);
+        assert_eq!(own.get("insert_n_per_m"), 1000.0, "x stands for the phase");
+        assert_eq!(own.get("insert_nm_per_rad"), 30.0);
+    }
+
+    /// A candidate must beat the scenario's own settings to replace them.
+    #[test]
+    fn a_tie_goes_to_the_incumbent() {
+        let scenario = Scenario::parse("name = \"t\"\ntrials = 1\ngeometries = [\"cross\"]\nclearances_mm = [0.5]\nt_obs_s = [6.0]\nmethods = [\"manifold\"]\n").unwrap();
+        let at = |candidate: Candidate, peak_fz_n| Evaluation {
+            rung: 0,
+            trials_per_cell: 1,
+            candidate,
+            trials: 2,
+            successes: 1,
+            success_rate: 0.5,
+            peak_fz_n,
+        };
+        let drawn = candidates(2, 1, TuneTarget::Gains);
+        let own = incumbent(&scenario, TuneTarget::Gains, 2);
+        let mut evals = vec![
+            at(drawn[0].clone(), 5.0),
+            at(own.clone(), 5.0),
+            at(drawn[1].clone(), 4.0),
+        ];
+        rank(&mut evals);
+        let order: Vec<usize> = evals.iter().map(|e| e.candidate.id).collect();
+        assert_eq!(order, [1, 2, 0]);
     }
 }

@@ -348,7 +348,7 @@ enum Estimator<'a> {
     /// the direct baseline, which has no estimate).
     Register(Option<&'a Manifold>),
     /// A registration made while observing (the adaptive method), with its wall time, s.
-    Given(Option<Box<(Registration, f64)>>),
+    Given(Option<Box<TimedRegistration>>),
 }
 
 /// [`finish_trial`] with the estimate from `estimator`.
@@ -389,7 +389,10 @@ fn finish(
             Estimator::Register(manifold) => {
                 estimate_hole(manifold, &observations, &believed, config, &setup.seeds)?
             }
-            Estimator::Given(given) => given.map_or((None, 0.0), |g| (Some(g.0), g.1)),
+            Estimator::Given(given) => given.map_or((None, 0.0), |g| {
+                let (registration, wall_s) = *g;
+                (Some(registration), wall_s)
+            }),
         };
         let estimate = stages.estimate.as_ref().map(|r| &r.estimate);
         session.record_registration(&observations, &believed, estimate);
