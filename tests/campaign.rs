@@ -398,6 +398,32 @@ fn trials_run_for_a_search_are_the_campaigns_records() {
     assert_eq!(lines, campaign);
 }
 
+/// A search over the direct baseline's insertion runs a rung's candidates together, each seed's
+/// observation once for all of them: each evaluation is the one its candidate gets alone.
+#[test]
+fn candidates_that_differ_after_the_observation_share_it_and_score_as_alone() {
+    use pegtwin::campaign::tune::{TuneTarget, candidates, evaluate_candidates, incumbent};
+    let tmp = tempfile::tempdir().unwrap();
+    let s = pegtwin::campaign::scenario::Scenario::parse(SCENARIO).unwrap();
+    let options = pegtwin::campaign::run::RunOptions {
+        cache_dir: tmp.path().join("cache"),
+        progress: &(),
+    };
+    let mut batch = candidates(2, 5, TuneTarget::Direct);
+    batch.push(incumbent(&s, TuneTarget::Direct, 2));
+    let direct = batch[0].apply(&s);
+    let prepared = pegtwin::campaign::run::prepare(&direct, &[0], &options).unwrap();
+    let together = evaluate_candidates(&s, &prepared, &batch, 0, 2).unwrap();
+    for (c, e) in batch.iter().zip(&together) {
+        let alone = evaluate_candidates(&s, &prepared, std::slice::from_ref(c), 0, 2).unwrap();
+        let alone = &alone[0];
+        assert_eq!(e.candidate.id, c.id);
+        assert_eq!((e.trials, e.successes), (alone.trials, alone.successes));
+        assert_eq!(e.peak_fz_n.to_bits(), alone.peak_fz_n.to_bits());
+    }
+    assert!(together.iter().all(|e| e.trials == 2));
+}
+
 #[test]
 fn tune_writes_its_table_and_prints_a_usable_snippet() {
     let tmp = tempfile::tempdir().unwrap();

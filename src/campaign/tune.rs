@@ -7,7 +7,11 @@
 //! runs a few trials per cell, the best `1/ETA` go on with `ETA` times as many, until one rung
 //! is left or the trial budget per candidate reaches the scenario's `trials`. Rungs reuse the
 //! campaign's trials (same seeds, so every candidate meets the same hole offsets: common random
-//! numbers make the comparison sharper than independent draws would).
+//! numbers make the comparison sharper than independent draws would). Where the candidates differ
+//! only after the observation (the direct and insertion targets), a rung's trials of a seed share
+//! one observation ([`crate::campaign::sharing`]), as a campaign's cells do: each record is the
+//! one its trial gives alone, and the rung costs one observation per seed instead of one per
+//! candidate.
 //!
 //! Score: success rate first, then the mean peak |Fz| of the successes (lower is better).
 //!
@@ -23,7 +27,7 @@
 //! `INSERTION_AXES`. Stiffnesses and forces are drawn log-uniformly.
 
 use crate::campaign::journal::Journal;
-use crate::campaign::records::TrialRecord;
+use crate::campaign::records::{TrialRecord, TrialSpec};
 use crate::campaign::run::{
     CampaignTrials, Plan, Prepared, RunOptions, Shard, prepare, run_trials,
 };
@@ -137,6 +141,15 @@ impl TuneTarget {
             TuneTarget::Gains => &GAINS_AXES,
             TuneTarget::Direct => &DIRECT_AXES,
             TuneTarget::Insertion => &INSERTION_AXES,
+        }
+    }
+
+    /// Whether the target's candidates differ only after the observation, so that their trials
+    /// of a seed can share it.
+    fn after_observation(self) -> bool {
+        match self {
+            TuneTarget::Gains => false,
+            TuneTarget::Direct | TuneTarget::Insertion => true,
         }
     }
 
@@ -415,25 +428,51 @@ fn rank(evals: &mut [Evaluation]) {
     });
 }
 
-fn evaluate(
+/// The evaluations of `batch` at `rung`, `trials_per_cell` trials per cell each, in its order:
+/// every candidate's trials run as one plan (the candidates' cells side by side), so that trials
+/// of a seed that observe alike share their observation.
+pub fn evaluate_candidates(
     scenario: &Scenario,
     prepared: &Prepared,
+    batch: &[Candidate],
+    rung: usize,
+    trials_per_cell: usize,
+) -> Result<Vec<Evaluation>> {
+    let (mut cells, mut specs, mut spans) = (Vec::new(), Vec::new(), Vec::new());
+    for candidate in batch {
+        let mut s = candidate.apply(scenario);
+        s.trials = trials_per_cell;
+        s.ensure_valid()?;
+        let first = specs.len();
+        let offset = cells.len();
+        let own = CampaignTrials::of(&s, Shard::WHOLE);
+        specs.extend(own.iter().map(|t| TrialSpec {
+            cell: t.cell + offset,
+            ..t
+        }));
+        spans.push(first..specs.len());
+        cells.extend(s.plan());
+    }
+    let records = run_trials(&Plan::of_cells(cells, prepared), &specs);
+    Ok((batch.iter().zip(spans))
+        .map(|(c, span)| evaluation(c, rung, trials_per_cell, &records[span]))
+        .collect())
+}
+
+/// A candidate's evaluation from its trials' records.
+fn evaluation(
     candidate: &Candidate,
     rung: usize,
     trials_per_cell: usize,
-) -> Result<Evaluation> {
-    let mut s = candidate.apply(scenario);
-    s.trials = trials_per_cell;
-    s.ensure_valid()?;
-    let specs: Vec<_> = CampaignTrials::of(&s, Shard::WHOLE).iter().collect();
-    let records: Vec<TrialRecord> = run_trials(&Plan::new(&s, prepared), &specs);
+    records: &[TrialRecord],
+) -> Evaluation {
     let successes = records.iter().filter(|r| r.result.success).count();
     let peaks: Vec<f64> = records
         .iter()
         .filter(|r| r.result.success)
         .map(|r| r.result.peak_fz_n)
         .collect();
-    Ok(Evaluation {
+    Evaluation {
         rung,
         trials_per_cell,
         candidate: candidate.clone(),
@@ -441,7 +480,7 @@ fn evaluate(
         successes,
         success_rate: successes as f64 / records.len().max(1) as f64,
         peak_fz_n: crate::campaign::summary::MeanStd::of(&peaks).map_or(f64::NAN, |m| m.mean),
-    })
+    }
 }
 
 /// What a search has finished, kept in a [`Journal`] as it goes, so that a killed search
@@ -583,17 +622,7 @@ pub fn tune(
     let mut out = Vec::new();
     for rung in 0.. {
         on_rung(rung, alive.len(), trials);
-        let mut evals = alive
-            .par_iter()
-            .map(|c| {
-                if let Some(e) = journal.and_then(|j| j.known(c, rung, trials)) {
-                    return Ok(e);
-                }
-                let e = evaluate(scenario, &prepared, c, rung, trials)?;
-                journal.map_or(Ok(()), |j| j.record(&e))?;
-                Ok(e)
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let mut evals = run_rung(scenario, options, &prepared, &alive, rung, trials, journal)?;
         rank(&mut evals);
         let last = alive.len() <= 1 || trials >= scenario.trials;
         alive = evals
@@ -608,6 +637,61 @@ pub fn tune(
         trials = (trials * ETA).min(scenario.trials);
     }
     Ok(out)
+}
+
+/// The evaluations of the candidates `alive` at a rung, in their order: those `journal` holds
+/// from it, the others run and kept in it. Candidates that differ after the observation only run
+/// together, sharing each seed's observation (kept as the rung ends); others run side by side,
+/// each kept as soon as it finishes.
+fn run_rung(
+    scenario: &Scenario,
+    options: &TuneOptions,
+    prepared: &Prepared,
+    alive: &[Candidate],
+    rung: usize,
+    trials: usize,
+    journal: Option<&TuneJournal>,
+) -> Result<Vec<Evaluation>> {
+    let known = |c: &Candidate| journal.and_then(|j| j.known(c, rung, trials));
+    let keep = |e: &Evaluation| journal.map_or(Ok(()), |j| j.record(e));
+    if !options.target.after_observation() {
+        return (alive.par_iter())
+            .map(|c| {
+                if let Some(e) = known(c) {
+                    return Ok(e);
+                }
+                let e =
+                    evaluate_candidates(scenario, prepared, std::slice::from_ref(c), rung, trials)?;
+                let e = e.into_iter().next().expect("one evaluation per candidate");
+                keep(&e)?;
+                Ok(e)
+            })
+            .collect();
+    }
+    let unknown: Vec<Candidate> = alive
+        .iter()
+        .filter(|c| known(c).is_none())
+        .cloned()
+        .collect();
+    let fresh = if unknown.is_empty() {
+        Vec::new()
+    } else {
+        evaluate_candidates(scenario, prepared, &unknown, rung, trials)?
+    };
+    let mut fresh = fresh.into_iter();
+    alive
+        .iter()
+        .map(|c| {
+            known(c).map_or_else(
+                || {
+                    let e = fresh.next().expect("an evaluation per unknown candidate");
+                    keep(&e)?;
+                    Ok(e)
+                },
+                Ok,
+            )
+        })
+        .collect()
 }
 
 /// The evaluations as CSV, one row per candidate and rung; a column per tuned axis.

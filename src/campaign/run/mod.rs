@@ -115,6 +115,11 @@ impl<'a> Plan<'a> {
         }
     }
 
+    /// A plan of `cells` (from one scenario or several) on `prepared` (prepared for their pairs).
+    pub fn of_cells(cells: Vec<PlannedCell>, prepared: &'a Prepared) -> Self {
+        Plan { cells, prepared }
+    }
+
     /// Campaign cell `cell`.
     pub fn cell(&self, cell: usize) -> &PlannedCell {
         &self.cells[cell]
