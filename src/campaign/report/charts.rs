@@ -510,6 +510,22 @@ pub(super) fn draw_tune<DB: DrawingBackend>(
             .label(format!("rung {rung}"))
             .legend(move |(x, y)| Circle::new((x + 6, y), 5, colour.filled()));
     }
+    // The incumbent (the scenario's own settings) ringed at every rung it reached.
+    chart
+        .draw_series(
+            (evals.iter())
+                .filter(|e| e.candidate.incumbent && e.peak_fz_n.is_finite())
+                .map(|e| {
+                    Circle::new(
+                        (e.peak_fz_n, e.success_rate * 100.0),
+                        9,
+                        BLACK.stroke_width(2),
+                    )
+                }),
+        )
+        .map_err(err)?
+        .label("the scenario's own settings")
+        .legend(|(x, y)| Circle::new((x + 6, y), 7, BLACK.stroke_width(2)));
     draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present().map_err(err)
 }
