@@ -330,9 +330,16 @@ fn the_active_method_widens_the_motion_after_its_first_check() {
     assert_eq!(active.observation_s, Some(4.0));
     assert_eq!(active.contact_observations, adaptive.contact_observations);
     assert_eq!(active.estimate, adaptive.estimate);
+    // Stopped at its first check, it widened nothing; the adaptive method's record has no count.
+    assert_eq!(active.widened, Some(Default::default()));
+    assert_eq!(adaptive.widened, None);
 
     let (adaptive, active) = (run(Method::Adaptive, 1e-12), run(Method::Active, 1e-12));
     assert_eq!(active.observation_s, Some(5.0));
     // Nearly every step of a deep observation is in contact: the count alone cannot tell.
     assert_ne!(active.estimate, adaptive.estimate);
+    // Checks at 4, 4.5 and 5 s: the first two widened a group each, the last stopped.
+    let record = serde_json::to_value(&active).unwrap();
+    let counts = ["lateral", "tilt", "yaw"].map(|g| record["widened"][g].as_u64().unwrap());
+    assert_eq!(counts.iter().sum::<u64>(), 2, "{counts:?}");
 }

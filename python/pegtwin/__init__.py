@@ -75,7 +75,8 @@ def trial(
             (the paper's method observing until its estimate is certain enough, at most
             ``t_obs``; the record's ``observation_s`` says how long and ``observation_stop``
             why: ``certain``, ``out_of_reach``, ``budget`` or ``fault``) or ``active`` (adaptive,
-            widening the motion on the axes it knows least).
+            widening the motion on the axes it knows least; ``widened`` counts what its checks
+            widened: ``lateral``, ``tilt``, ``yaw``).
         start: ``partial`` (partially inserted, the paper's set-up) or ``above`` (search first).
         offset_mm: half-range of the hole's position offset, mm.
         offset_deg: half-range of the hole's orientation offset, deg.

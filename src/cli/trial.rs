@@ -225,6 +225,12 @@ fn print_result(r: &TrialResult) {
         let why = (r.observation_stop).map_or(String::new(), |s| format!(" ({})", s.name()));
         println!("observed {t} s of at most {} s{why}", r.t_obs_s);
     }
+    if let Some(w) = r.widened {
+        println!(
+            "widened after its checks: lateral {}, tilt {}, yaw {}",
+            w.lateral, w.tilt, w.yaw
+        );
+    }
     if let Some(std) = r.estimate_std {
         let s = pegtwin::pose::Pose6(std).to_mm_deg();
         println!(

@@ -42,6 +42,29 @@ pub enum ObservationStop {
     Fault,
 }
 
+/// How many checks of an active observation widened each motion group ([`StopRule::weakest`]),
+/// in its record (`widened`): which uncertainty active probing chased.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Widened {
+    /// The spiral (x, y).
+    pub lateral: u32,
+    /// The roll and pitch oscillations.
+    pub tilt: u32,
+    /// The yaw oscillation.
+    pub yaw: u32,
+}
+
+impl Widened {
+    /// Counts one check that widened `probe`.
+    pub fn add(&mut self, probe: Probe) {
+        match probe {
+            Probe::Lateral => self.lateral += 1,
+            Probe::Tilt => self.tilt += 1,
+            Probe::Yaw => self.yaw += 1,
+        }
+    }
+}
+
 impl Choice for ObservationStop {
     const WHAT: &'static str = "observation stop";
     const NAMED: &'static [Named<Self>] = &[

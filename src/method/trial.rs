@@ -13,7 +13,7 @@
 
 use crate::choice::Choice;
 use crate::error::{Error, Result};
-use crate::method::adaptive::{ObservationStop, StopRule};
+use crate::method::adaptive::{ObservationStop, StopRule, Widened};
 use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::insert::{InsertEnd, Insertion, insert};
 use crate::method::manifold::Manifold;
@@ -74,13 +74,14 @@ fn run_adaptive_trial(
     let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
     let mut observing = ObservingTrial::start(pair, robot, params, config, seed, looking)?;
     let looking = recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder);
-    let (registration, stop) = observing.observe_adaptively(pair, manifold, looking)?;
+    let adaptive = observing.observe_adaptively(pair, manifold, looking)?;
     let observed = observing.into_observed_at_budget();
     let at_stop = observed.config.clone();
-    let estimator = Estimator::Given(registration.map(Box::new));
+    let estimator = Estimator::Given(adaptive.registration.map(Box::new));
     let mut result = finish(observed, pair, &at_stop, estimator, recorder)?;
     result.observation_s = Some(at_stop.t_obs_s);
-    result.observation_stop = stop;
+    result.observation_stop = adaptive.stop;
+    result.widened = adaptive.widened;
     result.t_obs_s = config.t_obs_s;
     Ok(result)
 }
@@ -122,6 +123,17 @@ pub fn observe_trial(
 
 /// A registration and its wall time, s.
 pub type TimedRegistration = (Registration, f64);
+
+/// What an adaptive observation ended with ([`ObservingTrial::observe_adaptively`]).
+pub struct AdaptiveObservation {
+    /// The registration of the observation it stopped with (none when too few contacts were
+    /// recorded to register, or when the trial stopped before observing), with its wall time.
+    pub registration: Option<TimedRegistration>,
+    /// Why it stopped (none when it never observed).
+    pub stop: Option<ObservationStop>,
+    /// For the active method, what its checks widened.
+    pub widened: Option<Widened>,
+}
 
 /// A trial between its approach and the end of its observation, which can stop at several
 /// budgets: the trials of a `t_obs` sweep that observe alike but for their budget
@@ -228,25 +240,27 @@ impl ObservingTrial {
     /// estimate's standard deviations meet [`StopRule`], as soon as one is out of reach by the
     /// longest budget ([`StopRule::out_of_reach`], unless turned off), or at that budget
     /// (`t_obs_s`). The active method also widens, after each check, the motion group its
-    /// estimate knows least ([`StopRule::weakest`], [`ObservationPhase::widen`]). Returns the
-    /// registration of the observation it stopped with (none when too few contacts were recorded
-    /// to register, or when the trial stopped before observing) and its wall time, and why it
-    /// stopped (none when it never observed).
+    /// estimate knows least ([`StopRule::weakest`], [`ObservationPhase::widen`]).
     pub fn observe_adaptively(
         &mut self,
         pair: &PartPair,
         manifold: &Manifold,
         mut recorder: Option<&mut dyn Recorder>,
-    ) -> Result<(Option<TimedRegistration>, Option<ObservationStop>)> {
+    ) -> Result<AdaptiveObservation> {
         let config = self.trial.config.clone();
         let rule = StopRule::for_pair(pair, &config.adaptive);
         let mut t = config.adaptive.check_from_s.min(config.t_obs_s);
         let mut last: Option<TimedRegistration> = None;
         let mut before: Option<(f64, [f64; 6])> = None;
+        let mut widened = (config.method == Method::Active).then(Widened::default);
         loop {
             self.observe_until(t, recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder));
             let Some(believed) = self.trial.believed else {
-                return Ok((None, None));
+                return Ok(AdaptiveObservation {
+                    registration: None,
+                    stop: None,
+                    widened,
+                });
             };
             let init = last.as_ref().map_or(believed, |(r, _)| r.estimate.to_iso());
             let observations = self.observation().downsampled(config.observations);
@@ -257,12 +271,18 @@ impl ObservingTrial {
             };
             let std = last.as_ref().map(|(r, _)| r.estimate_std);
             if let Some(stop) = self.stop_after_check(&rule, t, std, before) {
-                return Ok((last, Some(stop)));
+                return Ok(AdaptiveObservation {
+                    registration: last,
+                    stop: Some(stop),
+                    widened,
+                });
             }
-            if let (Method::Active, Some(std), Some(phase)) =
-                (config.method, std, &mut self.observation_phase)
+            if let (Some(widened), Some(std), Some(phase)) =
+                (&mut widened, std, &mut self.observation_phase)
             {
-                phase.widen(rule.weakest(&std));
+                let probe = rule.weakest(&std);
+                phase.widen(probe);
+                widened.add(probe);
             }
             before = std.map(|s| (t, s));
             t = (t + config.adaptive.check_every_s).min(config.t_obs_s);
@@ -476,6 +496,10 @@ pub struct TrialResult {
     /// `fault` (docs/method.md); absent for the other methods.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub observation_stop: Option<ObservationStop>,
+    /// How many checks of the active method widened each motion group (`lateral`, `tilt`,
+    /// `yaw`; docs/method.md, "Active probing"); absent for the other methods.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub widened: Option<Widened>,
     /// Estimated `base_T_hole` (m, rad), manifold method only.
     pub estimate: Option<[f64; 6]>,
     /// The standard deviation of the estimate's error per axis, in the estimated hole frame
@@ -635,6 +659,7 @@ impl Setup {
             error_message: None,
             observation_s: None,
             observation_stop: None,
+            widened: None,
             estimate: None,
             estimate_std: None,
             estimate_covariance: None,
