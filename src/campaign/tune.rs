@@ -668,10 +668,10 @@ fn run_rung(
             })
             .collect();
     }
-    let unknown: Vec<Candidate> = alive
-        .iter()
-        .filter(|c| known(c).is_none())
-        .cloned()
+    let known: Vec<Option<Evaluation>> = alive.iter().map(known).collect();
+    let unknown: Vec<Candidate> = (alive.iter().zip(&known))
+        .filter(|(_, k)| k.is_none())
+        .map(|(c, _)| c.clone())
         .collect();
     let fresh = if unknown.is_empty() {
         Vec::new()
@@ -679,17 +679,14 @@ fn run_rung(
         evaluate_candidates(scenario, prepared, &unknown, rung, trials)?
     };
     let mut fresh = fresh.into_iter();
-    alive
-        .iter()
-        .map(|c| {
-            known(c).map_or_else(
-                || {
-                    let e = fresh.next().expect("an evaluation per unknown candidate");
-                    keep(&e)?;
-                    Ok(e)
-                },
-                Ok,
-            )
+    (known.into_iter())
+        .map(|k| match k {
+            Some(e) => Ok(e),
+            None => {
+                let e = fresh.next().expect("an evaluation per unknown candidate");
+                keep(&e)?;
+                Ok(e)
+            }
         })
         .collect()
 }

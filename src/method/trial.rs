@@ -409,10 +409,7 @@ fn finish(
             Estimator::Register(manifold) => {
                 estimate_hole(manifold, &observations, &believed, config, &setup.seeds)?
             }
-            Estimator::Given(given) => given.map_or((None, 0.0), |g| {
-                let (registration, wall_s) = *g;
-                (Some(registration), wall_s)
-            }),
+            Estimator::Given(given) => given.map_or((None, 0.0), |g| (Some(g.0), g.1)),
         };
         let estimate = stages.estimate.as_ref().map(|r| &r.estimate);
         session.record_registration(&observations, &believed, estimate);
