@@ -219,7 +219,8 @@ pub struct Registration {
     pub kept: usize,
     /// The covariance of the estimate's error in the estimated hole frame (x, y, z m; roll,
     /// pitch, yaw rad), row by row: the kept restarts' covariance and their spread, scaled by
-    /// the measured [`uncertainty::AXIS_SCALE`] (docs/registration.md, "Uncertainty").
+    /// the measured [`uncertainty::AXIS_SCALE`] with the floor [`uncertainty::AXIS_FLOOR`] added
+    /// (docs/registration.md, "Uncertainty").
     #[serde(default)]
     pub covariance: [[f64; 6]; 6],
     /// The standard deviation of each axis of `covariance` (m, rad).
