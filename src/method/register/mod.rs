@@ -218,9 +218,9 @@ pub struct Registration {
     /// Restarts kept by the MAD test.
     pub kept: usize,
     /// The covariance of the estimate's error in the estimated hole frame (x, y, z m; roll,
-    /// pitch, yaw rad), row by row: the kept restarts' covariance and their spread, scaled by
-    /// the measured [`uncertainty::AXIS_SCALE`] with the floor [`uncertainty::AXIS_FLOOR`] added
-    /// (docs/registration.md, "Uncertainty").
+    /// pitch, yaw rad), row by row: the covariance and spread of the restarts it was combined
+    /// from, scaled by the measured [`uncertainty::AXIS_SCALE`] with the floor
+    /// [`uncertainty::AXIS_FLOOR`] added (docs/registration.md, "Uncertainty").
     #[serde(default)]
     pub covariance: [[f64; 6]; 6],
     /// The standard deviation of each axis of `covariance` (m, rad).
