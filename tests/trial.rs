@@ -243,8 +243,9 @@ fn adaptive_settings(
 /// The adaptive method stops observing at its first registration when its limits are loose;
 /// when they cannot be met, at its second (out of reach), or, told not to stop so, at the end of
 /// its budget. Either way it inserts along its last estimate, and its record holds the cell's
-/// `t_obs_s`, the time it observed and why it stopped. Observing its whole budget, it records
-/// the contacts the manifold method records with that budget.
+/// `t_obs_s`, the time it observed, why it stopped and the standard deviations at each check.
+/// Observing its whole budget, it records the contacts the manifold method records with that
+/// budget.
 #[test]
 fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
     use pegtwin::method::adaptive::ObservationStop;
@@ -282,6 +283,12 @@ fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
     let strict = run(&adaptive(1e-12, false));
     assert_eq!(strict.observation_s, Some(5.0));
     assert_eq!(strict.observation_stop, Some(ObservationStop::Budget));
+    // Checks at 2, 3, 4 and 5 s; the last one's standard deviations are the estimate's.
+    assert_eq!(loose.check_s, Some(vec![2.0]));
+    assert_eq!(strict.check_s, Some(vec![2.0, 3.0, 4.0, 5.0]));
+    let at_checks = strict.check_std.as_ref().unwrap();
+    assert_eq!(at_checks.len(), 4);
+    assert_eq!(at_checks.last().copied(), strict.estimate_std);
     let manifold = run(&TrialConfig {
         t_obs_s: 5.0,
         ..TrialConfig::default()
@@ -290,6 +297,7 @@ fn the_adaptive_method_stops_when_its_estimate_is_certain_enough() {
         (manifold.observation_s, manifold.observation_stop),
         (None, None)
     );
+    assert_eq!((manifold.check_s, manifold.check_std), (None, None));
     assert_eq!(strict.contact_observations, manifold.contact_observations);
     assert!(loose.contact_observations < unreachable.contact_observations);
     assert!(unreachable.contact_observations < strict.contact_observations);

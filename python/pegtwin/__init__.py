@@ -305,7 +305,9 @@ def load_trials(dir: PathLike) -> "pandas.DataFrame":  # noqa: F821
     ``sim_fault``: ``drives``, the commanded motion; ``contacts`` or ``integration``, the
     physics), ``stopped``, the phase times ``time_search_s`` ...
     ``time_insert_s``, ``insert_fz_n`` (the insertion's |Fz| profile, a list per row), and
-    ``insert_end`` (what ended the insertion: ``seat``, ``jam``, ``travel`` or ``limit``); the
+    ``insert_end`` (what ended the insertion: ``seat``, ``jam``, ``travel`` or ``limit``);
+    for the adaptive and active methods ``observation_s``, ``observation_stop``, ``check_s`` and
+    ``check_std`` (each check's time and the standard deviations then, lists per row); the
     real cell's draw (``real_cell_contact_friction``, ...) and the print's (``print_clearance_m``,
     ...), nested objects flattened with ``_``.
     """

@@ -82,6 +82,8 @@ fn run_adaptive_trial(
     result.observation_s = Some(at_stop.t_obs_s);
     result.observation_stop = adaptive.stop;
     result.widened = adaptive.widened;
+    result.check_s = Some(adaptive.checks.iter().map(|c| c.0).collect());
+    result.check_std = Some(adaptive.checks.iter().map(|c| c.1).collect());
     result.t_obs_s = config.t_obs_s;
     Ok(result)
 }
@@ -133,6 +135,9 @@ pub struct AdaptiveObservation {
     pub stop: Option<ObservationStop>,
     /// For the active method, what its checks widened.
     pub widened: Option<Widened>,
+    /// Each check that registered: its time, s, and the estimate's standard deviations then
+    /// (m and rad).
+    pub checks: Vec<(f64, [f64; 6])>,
 }
 
 /// A trial between its approach and the end of its observation, which can stop at several
@@ -253,6 +258,7 @@ impl ObservingTrial {
         let mut last: Option<TimedRegistration> = None;
         let mut before: Option<(f64, [f64; 6])> = None;
         let mut widened = (config.method == Method::Active).then(Widened::default);
+        let mut checks = Vec::new();
         loop {
             self.observe_until(t, recorder.as_mut().map(|r| &mut **r as &mut dyn Recorder));
             let Some(believed) = self.trial.believed else {
@@ -260,6 +266,7 @@ impl ObservingTrial {
                     registration: None,
                     stop: None,
                     widened,
+                    checks,
                 });
             };
             let init = last.as_ref().map_or(believed, |(r, _)| r.estimate.to_iso());
@@ -270,11 +277,13 @@ impl ObservingTrial {
                 (None, _) => None,
             };
             let std = last.as_ref().map(|(r, _)| r.estimate_std);
+            checks.extend(std.map(|s| (t, s)));
             if let Some(stop) = self.stop_after_check(&rule, t, std, before) {
                 return Ok(AdaptiveObservation {
                     registration: last,
                     stop: Some(stop),
                     widened,
+                    checks,
                 });
             }
             if let (Some(widened), Some(std), Some(phase)) =
@@ -497,6 +506,15 @@ pub struct TrialResult {
     /// `yaw`; docs/method.md, "Active probing"); absent for the other methods.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub widened: Option<Widened>,
+    /// The times of the adaptive method's checks that registered, s (docs/method.md); absent for
+    /// the other methods.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check_s: Option<Vec<f64>>,
+    /// The estimate's standard deviations at each of those checks (x, y, z m; roll, pitch, yaw
+    /// rad, as `estimate_std`): how the uncertainty shrank as it observed; the last is the
+    /// estimate's. Absent for the other methods.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check_std: Option<Vec<[f64; 6]>>,
     /// Estimated `base_T_hole` (m, rad), manifold method only.
     pub estimate: Option<[f64; 6]>,
     /// The standard deviation of the estimate's error per axis, in the estimated hole frame
@@ -657,6 +675,8 @@ impl Setup {
             observation_s: None,
             observation_stop: None,
             widened: None,
+            check_s: None,
+            check_std: None,
             estimate: None,
             estimate_std: None,
             estimate_covariance: None,
