@@ -19,7 +19,8 @@
 //! Outlying restarts are rejected by the median absolute deviation: each result is written as a
 //! scaled twist from the mean of all results; a restart is rejected when any axis lies more than
 //! `mad_threshold` x 1.4826 x MAD from that axis's median (MAD floored at [`MAD_FLOOR_MM`] so that
-//! restarts that agree to micrometres are all kept). The estimate is the SE(3) mean of the rest.
+//! restarts that agree to micrometres are all kept). The estimate is the SE(3) mean of the rest
+//! (of all, all kept, where the test would reject every one).
 
 pub mod algorithm1;
 pub mod correspondence;
@@ -412,7 +413,8 @@ pub fn run_from(
     }
 }
 
-/// Reject outlying restarts (MAD) and return the SE(3) mean of the others.
+/// Reject outlying restarts (MAD) and return the SE(3) mean of the others (of all, kept, where
+/// the test would reject every one).
 fn combine_restarts(results: &mut [RestartResult], metric: &PoseMetric, threshold: f64) -> Iso {
     let all: Vec<Iso> = results.iter().map(|r| r.estimate.to_iso()).collect();
     let centre = se3_mean(&all, metric);
@@ -436,17 +438,19 @@ fn combine_restarts(results: &mut [RestartResult], metric: &PoseMetric, threshol
             }
         }
     }
+    if results.iter().all(|r| r.rejected) {
+        // Axis by axis the test can reject every restart: with no consensus to keep, all are
+        // kept, and the estimate is their mean.
+        results.iter_mut().for_each(|r| r.rejected = false);
+        return centre;
+    }
     let kept: Vec<Iso> = results
         .iter()
         .zip(&all)
         .filter(|(r, _)| !r.rejected)
         .map(|(_, t)| *t)
         .collect();
-    if kept.is_empty() {
-        centre
-    } else {
-        se3_mean(&kept, metric)
-    }
+    se3_mean(&kept, metric)
 }
 
 fn median(values: &[f64]) -> f64 {
@@ -486,5 +490,36 @@ mod tests {
         let mean = combine_restarts(&mut rs, &metric, 3.0);
         assert!(rs[7].rejected && rs[..7].iter().all(|r| !r.rejected));
         assert!((mean.translation.vector.z - 0.2).abs() < 1e-9);
+    }
+
+    /// Seen on a plug3 trial: the MAD test, axis by axis, rejected every restart, and the
+    /// estimate (the mean of all) came with a zero covariance, which an adaptive observation read
+    /// as certain. Now every restart is kept, and the estimate is as uncertain as all of them.
+    #[test]
+    fn when_the_mad_test_would_reject_every_restart_all_are_kept() {
+        let metric = PoseMetric::default();
+        // Each restart lies out on an axis of its own.
+        let mut rs: Vec<RestartResult> = (0..4)
+            .map(|axis| {
+                let mut p = [0.0; 6];
+                p[axis] = 1e-2;
+                RestartResult {
+                    initial: Pose6::IDENTITY,
+                    estimate: Pose6(p),
+                    iterations: 1,
+                    step_mm: vec![],
+                    residual_mm: 0.0,
+                    rejected: false,
+                    covariance: [[0.0; 6]; 6],
+                }
+            })
+            .collect();
+        let all: Vec<Iso> = rs.iter().map(|r| r.estimate.to_iso()).collect();
+        let mean = combine_restarts(&mut rs, &metric, 3.0);
+        assert!(rs.iter().all(|r| !r.rejected));
+        assert_eq!(mean, se3_mean(&all, &metric));
+        let cov = uncertainty::estimate_covariance(&mean, &rs);
+        let floor = uncertainty::AXIS_FLOOR;
+        assert!((0..4).all(|i| cov[i][i] > floor[i] * floor[i]), "{cov:?}");
     }
 }
