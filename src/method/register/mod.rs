@@ -468,10 +468,9 @@ fn median(values: &[f64]) -> f64 {
 mod tests {
     use super::*;
 
-    #[test]
-    fn mad_rejects_the_outlying_restart() {
-        let metric = PoseMetric::default();
-        let result = |p: [f64; 6]| RestartResult {
+    /// A restart that ended at `p` (m, rad), not rejected, with no covariance of its own.
+    fn result(p: [f64; 6]) -> RestartResult {
+        RestartResult {
             initial: Pose6::IDENTITY,
             estimate: Pose6(p),
             iterations: 1,
@@ -479,7 +478,12 @@ mod tests {
             residual_mm: 0.0,
             rejected: false,
             covariance: [[0.0; 6]; 6],
-        };
+        }
+    }
+
+    #[test]
+    fn mad_rejects_the_outlying_restart() {
+        let metric = PoseMetric::default();
         let mut rs: Vec<RestartResult> = (0..7)
             .map(|i| {
                 let d = 1e-5 * i as f64;
@@ -503,15 +507,7 @@ mod tests {
             .map(|axis| {
                 let mut p = [0.0; 6];
                 p[axis] = 1e-2;
-                RestartResult {
-                    initial: Pose6::IDENTITY,
-                    estimate: Pose6(p),
-                    iterations: 1,
-                    step_mm: vec![],
-                    residual_mm: 0.0,
-                    rejected: false,
-                    covariance: [[0.0; 6]; 6],
-                }
+                result(p)
             })
             .collect();
         let all: Vec<Iso> = rs.iter().map(|r| r.estimate.to_iso()).collect();
