@@ -299,12 +299,13 @@ pub struct BuildArgs {
     /// Poses kept after downsampling (the paper found 1e4-1e5 best).
     #[arg(long, default_value_t = ManifoldSpec::default().points)]
     pub points: usize,
-    /// Independent sampling episodes (simulations run in parallel).
-    #[arg(long, default_value_t = ManifoldSpec::default().episodes)]
-    pub episodes: usize,
-    /// Simulated seconds per episode.
-    #[arg(long, default_value_t = ManifoldSpec::default().episode_s)]
-    pub episode_s: f64,
+    /// The robot sampler's independent sampling episodes (simulations run in parallel)
+    /// [default: 48].
+    #[arg(long)]
+    pub episodes: Option<usize>,
+    /// The robot sampler's simulated seconds per episode [default: 20].
+    #[arg(long)]
+    pub episode_s: Option<f64>,
     #[arg(long, default_value_t = ManifoldSpec::default().seed)]
     pub seed: u64,
     /// How contact poses are found: `robot` (the arm probes the hole in simulation, paper IV-B)
@@ -330,14 +331,22 @@ fn build(args: BuildArgs) -> Result<()> {
         eprintln!("warning: {w}");
     }
     if args.sampler == Sampler::Geometric {
+        if args.episodes.is_some() || args.episode_s.is_some() {
+            return Err(Error::Input(
+                "--episodes and --episode-s set the robot sampler's simulations, and the \
+                 geometric sampler has none: leave them out, or use --sampler robot"
+                    .into(),
+            ));
+        }
         return build_geometric(&pair, &args, out);
     }
     let spec = source.robot()?;
     let (robot, _) = spec.load()?;
+    let default = ManifoldSpec::default();
     let config = ManifoldSpec {
-        episodes: args.episodes,
-        episode_s: args.episode_s,
-        ..Default::default()
+        episodes: args.episodes.unwrap_or(default.episodes),
+        episode_s: args.episode_s.unwrap_or(default.episode_s),
+        ..default
     }
     .sampler();
     let bar = indicatif::ProgressBar::new(config.episodes as u64);

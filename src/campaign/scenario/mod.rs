@@ -392,6 +392,7 @@ impl Scenario {
         m.sampler()
             .ensure_valid()
             .map_err(|e| Error::Input(format!("manifold: {e}")))?;
+        m.ensure_episodes_used()?;
         self.ensure_gains_valid()?;
         self.insertion.ensure_valid("insertion")?;
         self.direct.insertion.ensure_valid("direct.insertion")?;
@@ -675,6 +676,23 @@ methods = ["manifold", "direct"]
         assert_eq!(cells[0].t_obs_s, 6.0);
         assert_eq!(cells[2].method, Method::Direct);
         assert_eq!(cells[2].t_obs_s, 10.0);
+    }
+
+    #[test]
+    fn the_geometric_sampler_refuses_the_robots_episodes() {
+        use crate::method::manifold::cache::Sampler;
+        let geometric = format!("{MINIMAL}\n[manifold]\nsampler = \"geometric\"\n");
+        let s = Scenario::parse(&geometric).unwrap();
+        assert_eq!(s.manifold.sampler, Sampler::Geometric);
+        let err = Scenario::parse(&format!("{geometric}episodes = 3\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("manifold.episodes = 3") && err.contains("manifold.sampler = \"robot\""),
+            "{err}"
+        );
+        let robot = format!("{MINIMAL}\n[manifold]\nepisodes = 3\n");
+        assert_eq!(Scenario::parse(&robot).unwrap().manifold.episodes, 3);
     }
 
     #[test]

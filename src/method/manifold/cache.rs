@@ -87,6 +87,22 @@ impl Default for ManifoldSpec {
 }
 
 impl ManifoldSpec {
+    /// Refuses robot-sampler settings (`episodes`, `episode_s`) other than the defaults on a
+    /// geometric spec, where nothing would use them.
+    pub fn ensure_episodes_used(&self) -> Result<()> {
+        let default = ManifoldSpec::default();
+        let set = self.episodes != default.episodes || self.episode_s != default.episode_s;
+        if self.sampler == Sampler::Geometric && set {
+            return Err(Error::Input(format!(
+                "manifold.episodes = {}, manifold.episode_s = {}: they set the robot sampler's \
+                 simulations, and the geometric sampler has none; leave them out, or set \
+                 manifold.sampler = \"robot\"",
+                self.episodes, self.episode_s
+            )));
+        }
+        Ok(())
+    }
+
     /// The sampler this spec asks for.
     pub fn sampler(&self) -> SamplerConfig {
         SamplerConfig {
