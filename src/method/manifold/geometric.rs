@@ -27,7 +27,8 @@ use crate::error::{Error, Result};
 use crate::method::primitives::SamplingMotion;
 use crate::pose::{Pose6, PoseMetric};
 use crate::twin::geometry::PartPair;
-use crate::twin::physics::penetration::{GapHints, PenetrationProbe};
+use crate::twin::physics::penetration::PenetrationProbe;
+use crate::twin::physics::signed_gap::GapHints;
 use nalgebra::Isometry3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -45,7 +46,8 @@ pub const TOUCH_TOLERANCE_M: f64 = 0.5e-6;
 pub const PERTURBATION_REACH_SIGMAS: f64 = 2.0;
 /// What decides a geometric manifold beyond its motion, points and seed: part of its cache key
 /// (a change of the method here builds new files instead of reusing stale ones).
-pub const RULE: &str = "geometric v2: 2 draws per point, 0.5 um, 2 sigma, first step 1/|variates|";
+pub const RULE: &str =
+    "geometric v3: 2 draws per point, 0.5 um, 2 sigma, first step 1/|variates|, centred gap table";
 /// The signed gap's margin, as a share of the clearance: pairs farther apart count as this far.
 /// A narrower margin tests fewer piece pairs per pose but flattens the gap away from contact, so
 /// the root finder needs more poses; a quarter was the fastest of 1/16, 1/4 and 1 on the cross
@@ -53,7 +55,7 @@ pub const RULE: &str = "geometric v2: 2 draws per point, 0.5 um, 2 sigma, first 
 const GAP_MARGIN: f64 = 0.25;
 /// Draws tried at most, per contact pose wanted, before the build is refused.
 const MAX_DRAWS_PER_CONTACT: usize = 50;
-/// Draws handed to the thread pool at a time.
+/// Draws handed to the thread pool at a time, at most.
 const BATCH: usize = 8192;
 
 /// The poses the robot sampler's motion ([`SamplingMotion`]) reaches at a clearance: the tip's
@@ -121,6 +123,72 @@ impl Region {
     }
 }
 
+/// The centred peg (x, y and the angles zero) over the region's depths: its gap at evenly
+/// spaced depths, and the depth down to which it is free. A draw starts from the centred pose at
+/// its depth; below that depth it is [`Draw::Blocked`], above it the gap there (interpolated)
+/// weighs its first secant step ([`first_touch`]).
+struct Centred {
+    /// Gaps at `depth_m[0] + k * step_m`, m.
+    gaps: Vec<f64>,
+    shallow_m: f64,
+    step_m: f64,
+    /// The centred peg is free from the shallowest depth down to this one, m.
+    free_to_m: f64,
+}
+
+/// Depths at which the centred peg's gap is sampled: a blocked stretch shorter than the region's
+/// depth over this goes unseen.
+const CENTRED_SAMPLES: usize = 256;
+
+impl Centred {
+    fn of(rays: &Rays) -> Centred {
+        let [shallow_m, deep] = rays.region.depth_m;
+        let step_m = (deep - shallow_m) / (CENTRED_SAMPLES - 1) as f64;
+        let gap_at = |depth: f64| {
+            let pose = Pose6([0.0, 0.0, -depth, 0.0, 0.0, 0.0]);
+            rays.gap(&pose, &mut GapHints::default())
+        };
+        let gaps: Vec<f64> = (0..CENTRED_SAMPLES)
+            .into_par_iter()
+            .map(|k| gap_at(shallow_m + k as f64 * step_m))
+            .collect();
+        // Down to the first sample that overlaps, and then to its root.
+        let free_to_m = match gaps.iter().position(|g| *g <= 0.0) {
+            None => deep,
+            Some(0) => f64::NEG_INFINITY,
+            Some(k) => {
+                let above = shallow_m + (k - 1) as f64 * step_m;
+                let down = |s: f64| gap_at(above + s);
+                match first_touch(down, gaps[k - 1], step_m, step_m, TOUCH_TOLERANCE_M) {
+                    Touch::At(s) => above + s,
+                    Touch::Blocked => above,
+                    // Free only by the rounding of the sample's depth: its gap was not.
+                    Touch::Free => above + step_m,
+                }
+            }
+        };
+        Centred {
+            gaps,
+            shallow_m,
+            step_m,
+            free_to_m,
+        }
+    }
+
+    /// The centred peg's gap at `depth_m`, interpolated (positive), or `None` where it is
+    /// blocked.
+    fn gap_at(&self, depth_m: f64) -> Option<f64> {
+        if depth_m > self.free_to_m {
+            return None;
+        }
+        let at = ((depth_m - self.shallow_m) / self.step_m).max(0.0);
+        let k = (at as usize).min(self.gaps.len() - 2);
+        let t = (at - k as f64).min(1.0);
+        let gap = (1.0 - t) * self.gaps[k] + t * self.gaps[k + 1];
+        Some(gap.max(f64::MIN_POSITIVE))
+    }
+}
+
 /// What one draw gave.
 enum Draw {
     /// A contact pose.
@@ -170,8 +238,10 @@ impl<'a> Rays<'a> {
         (self.probe).signed_gap(&self.pair.peg, &pose.to_iso(), margin_m, hints)
     }
 
-    /// Draw `i`: its depth and direction from its own stream, then the first contact along it.
-    fn draw(&self, i: u64) -> Draw {
+    /// Draw `i`'s depth and direction (x, y, roll, pitch, yaw per unit step), each from its own
+    /// stream, and the step at which the direction has used up the free play (the variates'
+    /// length in units of it): where contact is likely, the first step tried.
+    fn direction(&self, i: u64) -> (f64, [f64; 5], f64) {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         rng.set_stream(i);
         let [shallow, deep] = self.region.depth_m;
@@ -188,9 +258,18 @@ impl<'a> Rays<'a> {
         ];
         let variates: [f64; 5] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
         let dir: [f64; 5] = std::array::from_fn(|k| scales[k] * variates[k]);
-        // The step at which the direction has used up the free play (the variates' length in
-        // units of it): where contact is likely, the first step tried.
         let first = 1.0 / variates.iter().map(|v| v * v).sum::<f64>().sqrt();
+        (depth, dir, first)
+    }
+
+    /// Draw `i`: its depth and direction ([`Self::direction`]), then the first contact along it
+    /// from the centred pose (`hints`: a worker's buffers, forgotten first).
+    fn draw(&self, i: u64, centred: &Centred, hints: &mut GapHints) -> Draw {
+        hints.forget();
+        let (depth, dir, first) = self.direction(i);
+        let Some(gap0) = centred.gap_at(depth) else {
+            return Draw::Blocked;
+        };
         let pose = |s: f64| {
             let [x, y, r, p, w] = dir.map(|d| s * d);
             Pose6([x, y, -depth, r, p, w])
@@ -202,7 +281,7 @@ impl<'a> Rays<'a> {
         let speed = translation + self.reach_m * turn;
         // The gaps of the last step, and the step, so that the next one skips the pairs its
         // motion cannot bring closest ([`GapHints::moved`]).
-        let last = std::cell::RefCell::new((GapHints::default(), None::<f64>));
+        let last = std::cell::RefCell::new((hints, None::<f64>));
         let along = |s: f64| {
             let (hints, step) = &mut *last.borrow_mut();
             if let Some(previous) = step.replace(s) {
@@ -211,12 +290,8 @@ impl<'a> Rays<'a> {
             }
             self.gap(&pose(s), hints)
         };
-        match first_touch(
-            along,
-            first,
-            self.region.reach(depth, &dir),
-            TOUCH_TOLERANCE_M / speed,
-        ) {
+        let limit = self.region.reach(depth, &dir);
+        match first_touch(along, gap0, first, limit, TOUCH_TOLERANCE_M / speed) {
             Touch::At(s) => Draw::Contact(pose(s)),
             Touch::Blocked => Draw::Blocked,
             Touch::Free => Draw::Outside,
@@ -236,22 +311,26 @@ enum Touch {
 }
 
 /// The first root of `gap(s)` for `s` in `[0, limit]`, bracketed to `tolerance` (the free end
-/// returned), where `gap` is a signed gap, continuous and exact at zero. The bracket is found by
-/// doubling from the step `first`, then narrowed by regula falsi with the Illinois modification
-/// (superlinear on piecewise-smooth gaps), each step kept half a tolerance inside the bracket so
-/// that the last two close it.
-fn first_touch(gap: impl Fn(f64) -> f64, first: f64, limit: f64, tolerance: f64) -> Touch {
-    let (mut lo, mut f_lo) = (0.0, gap(0.0));
-    if f_lo <= 0.0 {
-        return Touch::Blocked;
-    }
+/// returned), where `gap` is a signed gap, continuous and exact at zero, and `gap0` is positive,
+/// the gap at zero or an estimate of it (it weighs the first secant only; zero is tested only
+/// if it ends up the free end). The bracket is found by doubling from the step `first`, then
+/// narrowed by regula falsi with the Illinois modification (superlinear on piecewise-smooth
+/// gaps), each step kept half a tolerance inside the bracket so that the last two close it.
+fn first_touch(
+    gap: impl Fn(f64) -> f64,
+    gap0: f64,
+    first: f64,
+    limit: f64,
+    tolerance: f64,
+) -> Touch {
+    let (mut lo, mut f_lo, mut lo_tested) = (0.0, gap0, false);
     let mut hi = first.min(limit);
     let mut f_hi = gap(hi);
     while f_hi > 0.0 {
         if hi >= limit {
             return Touch::Free;
         }
-        (lo, f_lo) = (hi, f_hi);
+        (lo, f_lo, lo_tested) = (hi, f_hi, true);
         hi = (2.0 * hi).min(limit);
         f_hi = gap(hi);
     }
@@ -267,7 +346,7 @@ fn first_touch(gap: impl Fn(f64) -> f64, first: f64, limit: f64, tolerance: f64)
         };
         let f = gap(s);
         if f > 0.0 {
-            (lo, f_lo) = (s, f);
+            (lo, f_lo, lo_tested) = (s, f, true);
             if side == 1 {
                 f_hi *= 0.5;
             }
@@ -279,6 +358,9 @@ fn first_touch(gap: impl Fn(f64) -> f64, first: f64, limit: f64, tolerance: f64)
             }
             side = -1;
         }
+    }
+    if !lo_tested && gap(lo) <= 0.0 {
+        return Touch::Blocked;
     }
     Touch::At(lo)
 }
@@ -301,6 +383,7 @@ fn draw_contacts(rays: &Rays, wanted: usize) -> Result<Drawn> {
         outside: 0,
     };
     let most = wanted.saturating_mul(MAX_DRAWS_PER_CONTACT);
+    let centred = Centred::of(rays);
     while drawn.contacts.len() < wanted {
         // Refused at the budget, or at once when a whole batch touched nowhere.
         if drawn.draws >= most || (drawn.draws > 0 && drawn.contacts.is_empty()) {
@@ -316,12 +399,14 @@ fn draw_contacts(rays: &Rays, wanted: usize) -> Result<Drawn> {
                 drawn.outside
             )));
         }
+        // No more draws than poses still wanted: those beyond would not be kept.
+        let size = (wanted - drawn.contacts.len()).min(BATCH);
         let start = drawn.draws as u64;
-        let batch: Vec<Draw> = (start..start + BATCH as u64)
+        let batch: Vec<Draw> = (start..start + size as u64)
             .into_par_iter()
-            .map(|i| rays.draw(i))
+            .map_init(GapHints::default, |hints, i| rays.draw(i, &centred, hints))
             .collect();
-        drawn.draws += BATCH;
+        drawn.draws += size;
         for d in batch {
             match d {
                 Draw::Contact(p) if drawn.contacts.len() < wanted => drawn.contacts.push(p),
@@ -395,22 +480,55 @@ mod tests {
                 0.5 - (s - 0.5) * 2.5
             }
         };
-        let Touch::At(s) = first_touch(gap, 1.0, 10.0, 1e-9) else {
-            panic!("a root in range");
-        };
-        assert!(s <= 0.7 && 0.7 - s <= 1e-9, "{s}");
-        assert_eq!(first_touch(gap, 1.0, 0.6, 1e-9), Touch::Free);
-        assert_eq!(first_touch(|s| s - 1.0, 1.0, 10.0, 1e-9), Touch::Blocked);
+        // The gap at zero, exact or only estimated, weighs the first step only.
+        for gap0 in [1.0, 1e-3, 1e3] {
+            let Touch::At(s) = first_touch(gap, gap0, 1.0, 10.0, 1e-9) else {
+                panic!("a root in range");
+            };
+            assert!(s <= 0.7 && 0.7 - s <= 1e-9, "{gap0}: {s}");
+        }
+        assert_eq!(first_touch(gap, 1.0, 1.0, 0.6, 1e-9), Touch::Free);
+        // Zero is tested when the bracket closes on it: overlapping or touching there.
         assert_eq!(
-            first_touch(|_| 0.0, 1.0, 10.0, 1e-9),
+            first_touch(|s| s - 1.0, 1.0, 1.0, 10.0, 1e-9),
+            Touch::Blocked
+        );
+        assert_eq!(
+            first_touch(|_| 0.0, 1.0, 1.0, 10.0, 1e-9),
             Touch::Blocked,
             "touching at the start"
         );
         // A root far beyond the first step: found by doubling.
-        let Touch::At(s) = first_touch(|s| 37.0 - s, 1.0, 100.0, 1e-9) else {
+        let Touch::At(s) = first_touch(|s| 37.0 - s, 37.0, 1.0, 100.0, 1e-9) else {
             panic!("a root in range");
         };
         assert!((37.0 - s) <= 1e-9 && s <= 37.0, "{s}");
+    }
+
+    #[test]
+    fn the_centred_peg_is_blocked_only_below_the_floor() {
+        let pair = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
+        let mut motion = SamplerConfig::default().motion;
+        let rays = Rays::new(&pair, Region::of(&pair, &motion).unwrap(), 1);
+        let centred = Centred::of(&rays);
+        // Free over the whole descent, the clearance's half a side at every depth.
+        assert_eq!(centred.free_to_m, rays.region.depth_m[1]);
+        for depth in [1e-3, 7.3e-3, 20e-3] {
+            let g = centred.gap_at(depth).unwrap();
+            assert!(g > 0.0 && g <= GAP_MARGIN * 0.5e-3, "{depth}: {g}");
+        }
+        // A descent to the hole's floor: blocked within the tolerance above it.
+        motion.descent.end_depth_m = 1.0;
+        let rays = Rays::new(&pair, Region::of(&pair, &motion).unwrap(), 1);
+        let floor = pair.cavity_depth_m;
+        let centred = Centred::of(&rays);
+        assert!(
+            centred.free_to_m <= floor && floor - centred.free_to_m <= TOUCH_TOLERANCE_M,
+            "{} against {floor}",
+            centred.free_to_m
+        );
+        assert_eq!(centred.gap_at(floor), None);
+        assert!(centred.gap_at(floor - 1e-3).is_some());
     }
 
     #[test]
@@ -455,8 +573,9 @@ mod tests {
             .err()
             .expect("refused")
             .to_string();
-        assert!(e.contains(&format!("0 of {BATCH} geometric draws")), "{e}");
-        assert!(e.contains(&format!("{BATCH} left the region")), "{e}");
+        // One batch of as many draws as poses wanted (two per point).
+        assert!(e.contains("0 of 2000 geometric draws"), "{e}");
+        assert!(e.contains("2000 left the region"), "{e}");
     }
 
     #[test]

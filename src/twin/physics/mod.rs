@@ -17,6 +17,7 @@ pub mod joint_contacts;
 pub mod penetration;
 pub mod projection;
 pub mod sat;
+pub mod signed_gap;
 
 use crate::twin::geometry::solid::Solid;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};

@@ -10,12 +10,15 @@ use rapier3d::parry::math::Vector;
 use rapier3d::parry::partitioning::{Bvh, BvhBuildStrategy};
 
 /// A convex piece's vertices, face normals and edge directions placed in the world.
-#[derive(Clone)]
-struct Posed {
-    vertices: Vec<P3>,
-    face_normals: Vec<Vector3<f64>>,
-    edge_dirs: Vec<Vector3<f64>>,
-    bounds: (P3, P3),
+#[derive(Clone, Default)]
+pub(super) struct Posed {
+    pub(super) vertices: Vec<P3>,
+    pub(super) face_normals: Vec<Vector3<f64>>,
+    pub(super) edge_dirs: Vec<Vector3<f64>>,
+    pub(super) bounds: (P3, P3),
+    /// The least and largest projection of the piece's own vertices on each of its face normals
+    /// (for [`super::signed_gap`]; empty where it is not needed).
+    pub(super) face_extents: Vec<(f64, f64)>,
 }
 
 impl Posed {
@@ -31,7 +34,16 @@ impl Posed {
             face_normals: piece.face_normals.iter().map(|n| iso * n).collect(),
             edge_dirs: piece.edge_dirs.iter().map(|e| iso * e).collect(),
             bounds,
+            face_extents: Vec::new(),
         }
+    }
+
+    /// The same piece with its [`Posed::face_extents`].
+    fn with_face_extents(mut self) -> Self {
+        self.face_extents = (self.face_normals.iter())
+            .map(|n| project(&self.vertices, n))
+            .collect();
+        self
     }
 }
 
@@ -65,86 +77,6 @@ fn posed_penetration(a: &Posed, b: &Posed) -> f64 {
         }
     }
     depth.max(0.0)
-}
-
-/// What [`PenetrationProbe::signed_gap`] remembers of a piece pair.
-#[derive(Clone, Copy, Debug)]
-struct Hint {
-    /// Index of the axis that gave the pair's gap ([`posed_gap`]'s numbering).
-    axis: usize,
-    gap_m: f64,
-}
-
-/// Each piece pair's last gap (or a lower bound of it) and axis, for
-/// [`PenetrationProbe::signed_gap`] (one per search).
-#[derive(Clone, Debug, Default)]
-pub struct GapHints {
-    /// Sorted by the pair (moving piece, fixed piece).
-    pairs: Vec<((usize, usize), Hint)>,
-    /// How far the moving solid may have moved since the last call: its origin, m, and its
-    /// turn, rad; `None`: unknown.
-    moved: Option<(f64, f64)>,
-    /// Each moving piece's largest distance of a vertex from the moving solid's origin, m.
-    radii: Vec<f64>,
-}
-
-impl GapHints {
-    /// Tells the next call that the moving solid's origin has moved no more than
-    /// `translation_m` since the last one, and the solid turned by no more than `turn_rad`: no
-    /// point then moved farther than `translation_m + turn_rad` times its distance from the
-    /// origin.
-    pub fn moved(&mut self, translation_m: f64, turn_rad: f64) {
-        self.moved = Some((translation_m, turn_rad));
-    }
-
-    /// How far any point of moving piece `p` may have moved since the last call, m.
-    fn moved_m(&self, p: usize) -> f64 {
-        self.moved.map_or(f64::INFINITY, |(t, turn)| {
-            (t + turn * self.radii[p]) * (1.0 + 1e-9) + 1e-12
-        })
-    }
-}
-
-/// The separating-axis candidate `k` of two pieces: the face normals of `a`, then those of
-/// `b`, then the cross products of their edge directions (row by row); `None` for a cross
-/// product of parallel edges.
-fn axis(a: &Posed, b: &Posed, k: usize) -> Option<Vector3<f64>> {
-    let (na, nb) = (a.face_normals.len(), b.face_normals.len());
-    if k < na {
-        return Some(a.face_normals[k]);
-    }
-    if k < na + nb {
-        return Some(b.face_normals[k - na]);
-    }
-    let e = k - na - nb;
-    let c = a.edge_dirs[e / b.edge_dirs.len()].cross(&b.edge_dirs[e % b.edge_dirs.len()]);
-    let len = c.norm();
-    (len > 1e-9).then(|| c / len)
-}
-
-/// The largest separation (metres; negative: minus the overlap depth) of two convex pieces
-/// along the separating-axis candidates ([`axis`]), and the candidate that gives it:
-/// `-posed_penetration` when they overlap. `first` is tried first (the last call's axis). Stops
-/// as soon as it reaches `enough` (the caller's smallest gap so far, which this pair can then
-/// not lower) and returns the separation found by then.
-fn posed_gap(a: &Posed, b: &Posed, enough: f64, first: Option<usize>) -> (f64, usize) {
-    let mut best = (f64::NEG_INFINITY, 0);
-    let count = a.face_normals.len() + b.face_normals.len() + a.edge_dirs.len() * b.edge_dirs.len();
-    for k in first.into_iter().chain(0..count) {
-        let Some(axis) = axis(a, b, k) else {
-            continue;
-        };
-        let (a0, a1) = project(&a.vertices, &axis);
-        let (b0, b1) = project(&b.vertices, &axis);
-        let sep = (b0 - a1).max(a0 - b1);
-        if sep > best.0 {
-            best = (sep, k);
-        }
-        if best.0 >= enough {
-            break;
-        }
-    }
-    best
 }
 
 /// The least overlap (metres; negative: the separation) of `moving` with `fixed` and the unit
@@ -190,7 +122,7 @@ fn least_overlap(moving: &Posed, fixed: &Posed, margin: f64) -> Option<(f64, Vec
 
 /// The least and largest projection of `points` on `axis` (plain comparisons: the coordinates
 /// are finite, and they let the compiler keep the loop tight).
-fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
+pub(super) fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for p in points {
         let d = p.x * axis.x + p.y * axis.y + p.z * axis.z;
@@ -205,7 +137,7 @@ fn project(points: &[P3], axis: &Vector3<f64>) -> (f64, f64) {
 }
 
 /// Whether two bounding boxes come within `margin` (metres) of each other on every axis.
-fn within(a: &(P3, P3), b: &(P3, P3), margin: f64) -> bool {
+pub(super) fn within(a: &(P3, P3), b: &(P3, P3), margin: f64) -> bool {
     (0..3).all(|i| a.0[i] <= b.1[i] + margin && b.0[i] <= a.1[i] + margin)
 }
 
@@ -222,7 +154,7 @@ pub struct GapRow {
 /// Precomputed pieces and bounds of a fixed solid, for repeated penetration queries.
 #[derive(Clone)]
 pub struct PenetrationProbe {
-    fixed: Vec<Posed>,
+    pub(super) fixed: Vec<Posed>,
     /// The fixed pieces' bounds (f32, loosened by `TREE_SLACK_M`), to find the pieces near a
     /// moving one without testing every pair; the exact f64 test follows.
     tree: Bvh,
@@ -233,7 +165,7 @@ pub struct PenetrationProbe {
 const TREE_SLACK_M: f64 = 10e-6;
 
 /// The bounds of points, smallest and largest corner.
-fn bounds_of(points: impl Iterator<Item = P3>) -> (P3, P3) {
+pub(super) fn bounds_of(points: impl Iterator<Item = P3>) -> (P3, P3) {
     points.fold(
         (
             P3::new(f64::MAX, f64::MAX, f64::MAX),
@@ -253,7 +185,9 @@ fn tree_box((lo, hi): &(P3, P3), margin: f64) -> Aabb {
 impl PenetrationProbe {
     /// Prepares the fixed solid placed at `pose` in the world.
     pub fn new(fixed: &Solid, pose: &Isometry3<f64>) -> Self {
-        let fixed: Vec<Posed> = fixed.pieces.iter().map(|p| Posed::new(p, pose)).collect();
+        let fixed: Vec<Posed> = (fixed.pieces.iter())
+            .map(|p| Posed::new(p, pose).with_face_extents())
+            .collect();
         let boxes: Vec<Aabb> = fixed.iter().map(|f| tree_box(&f.bounds, 0.0)).collect();
         PenetrationProbe {
             tree: Bvh::from_leaves(BvhBuildStrategy::Binned, &boxes),
@@ -287,96 +221,6 @@ impl PenetrationProbe {
             .fold(0.0, f64::max)
     }
 
-    /// The signed gap (metres) between `moving` placed at `pose` and the fixed solid: over the
-    /// piece pairs whose bounds come within `margin_m`, the least of each pair's largest
-    /// separation along the separating-axis candidates ([`posed_gap`]); `margin_m` when no pair
-    /// comes that close. Negative: minus the penetration depth ([`Self::max_penetration`]) of
-    /// the deepest pair; zero exactly when touching; positive: a lower bound of the distance.
-    ///
-    /// `hints` remembers, from the previous call, a lower bound of each pair's signed distance
-    /// and the axis that gave it: the pair closest then is tried first and each pair on its last
-    /// axis first. When the caller bounds how far the solid moved since ([`GapHints::moved`]), a
-    /// pair's signed distance is at least its bound less how far its moving piece moved (the
-    /// signed distance of two convex bodies changes no faster than their points move); a pair
-    /// whose bound is still no smaller than the least gap found so far is not tested, nor placed.
-    /// A positive value may then be larger than without the hints (never larger than the
-    /// distance); its sign, and a negative value, do not depend on them.
-    pub fn signed_gap(
-        &self,
-        moving: &Solid,
-        pose: &Isometry3<f64>,
-        margin_m: f64,
-        hints: &mut GapHints,
-    ) -> f64 {
-        if hints.radii.len() != moving.pieces.len() {
-            hints.radii = (moving.pieces.iter())
-                .map(|p| {
-                    p.vertices
-                        .iter()
-                        .map(|v| v.coords.norm())
-                        .fold(0.0, f64::max)
-                })
-                .collect();
-        }
-        // The pairs near, in (moving, fixed) order, each with its hint (both lists are sorted).
-        let mut pairs: Vec<(usize, usize, Option<Hint>)> = Vec::new();
-        let mut placed: Vec<Option<Vec<P3>>> = vec![None; moving.pieces.len()];
-        let mut known = hints.pairs.iter().peekable();
-        let mut near = Vec::new();
-        for (p, piece) in moving.pieces.iter().enumerate() {
-            let vertices: Vec<P3> = piece.vertices.iter().map(|v| pose * v).collect();
-            self.near_into(&bounds_of(vertices.iter().copied()), margin_m, &mut near);
-            if near.is_empty() {
-                continue;
-            }
-            for &f in &near {
-                let hint = loop {
-                    match known.peek() {
-                        Some(&&(k, h)) if k == (p, f) => break Some(h),
-                        Some(&&(k, _)) if k < (p, f) => _ = known.next(),
-                        _ => break None,
-                    }
-                };
-                pairs.push((p, f, hint));
-            }
-            placed[p] = Some(vertices);
-        }
-        // The pair closest last time first: the least gap falls at once and most pairs are
-        // then skipped.
-        let gap = |h: &Option<Hint>| h.map_or(f64::INFINITY, |h| h.gap_m);
-        let closest =
-            (0..pairs.len()).min_by(|&a, &b| gap(&pairs[a].2).total_cmp(&gap(&pairs[b].2)));
-        let order = closest
-            .into_iter()
-            .chain((0..pairs.len()).filter(|&i| Some(i) != closest));
-        let mut posed: Vec<Option<Posed>> = vec![None; moving.pieces.len()];
-        let mut least = margin_m;
-        let mut fresh: Vec<Option<Hint>> = vec![None; pairs.len()];
-        for i in order {
-            let (p, f, hint) = pairs[i];
-            let bound = hint.map(|h| Hint {
-                gap_m: h.gap_m - hints.moved_m(p),
-                ..h
-            });
-            if let Some(b) = bound.filter(|b| b.gap_m >= least) {
-                fresh[i] = Some(b);
-                continue;
-            }
-            let placed = posed[p].get_or_insert_with(|| {
-                let vertices = placed[p].take().expect("each piece's vertices are placed");
-                Posed::with_vertices(&moving.pieces[p], pose, vertices)
-            });
-            let (gap, axis) = posed_gap(placed, &self.fixed[f], least, hint.map(|h| h.axis));
-            least = least.min(gap);
-            fresh[i] = Some(Hint { axis, gap_m: gap });
-        }
-        hints.pairs = (pairs.iter().zip(fresh))
-            .map(|(&(p, f, _), h)| ((p, f), h.expect("every pair is tested or bounded")))
-            .collect();
-        hints.moved = None;
-        least
-    }
-
     /// The fixed pieces whose bounds come within `margin` (metres) of `bounds`, in index order.
     fn near_bounds(&self, bounds: &(P3, P3), margin: f64) -> Vec<usize> {
         let mut near = Vec::new();
@@ -385,7 +229,7 @@ impl PenetrationProbe {
     }
 
     /// [`Self::near_bounds`] into `near` (cleared first).
-    fn near_into(&self, bounds: &(P3, P3), margin: f64, near: &mut Vec<usize>) {
+    pub(super) fn near_into(&self, bounds: &(P3, P3), margin: f64, near: &mut Vec<usize>) {
         near.clear();
         near.extend(
             (self.tree)
