@@ -4,6 +4,11 @@
 //! piece pair, the axis that separated it and a lower bound of its distance ([`GapHints`]), so
 //! that the next call tries that axis first and skips the pairs that cannot be the closest; the
 //! buffers are kept between calls, and the face normals' own extents are not projected again.
+//! Of the edge pairs, only those whose cross product is a face normal of the pieces' Minkowski
+//! difference are tried (their Gauss-map arcs cross: Gregorius, "The separating axis test
+//! between convex polyhedra", GDC 2013): the others never give the largest separation of
+//! overlapping pieces, so the depth is the same, and the face normals and these suffice to
+//! separate pieces that are apart.
 
 use super::penetration::{PenetrationProbe, Posed, bounds_of, project, within};
 use crate::twin::geometry::solid::P3;
@@ -14,10 +19,122 @@ use nalgebra::{Isometry3, Vector3};
 /// again, as a share of the margin (the lookup then takes the margin and this much more).
 const LIST_SLACK: f64 = 4.0;
 
-/// What [`PenetrationProbe::signed_gap`] remembers of a piece pair.
+/// A pose as a rotation matrix and a translation: placing a point takes fewer operations than
+/// with the pose's quaternion, and a piece's vertices are placed at every call.
+struct Placement {
+    rotation: nalgebra::Matrix3<f64>,
+    translation: Vector3<f64>,
+}
+
+impl Placement {
+    fn of(pose: &Isometry3<f64>) -> Self {
+        Placement {
+            rotation: *pose.rotation.to_rotation_matrix().matrix(),
+            translation: pose.translation.vector,
+        }
+    }
+
+    fn point(&self, p: &P3) -> P3 {
+        P3::from(self.rotation * p.coords + self.translation)
+    }
+}
+
+/// An edge of a convex piece: its two vertices and the two faces it joins (indices into the
+/// piece's vertices and faces).
+#[derive(Clone, Copy, Debug)]
+struct Edge {
+    ends: [usize; 2],
+    faces: [usize; 2],
+}
+
+/// The edges of `piece` between faces that are not parallel, in the order its faces walk them.
+fn edges_of(piece: &ConvexPiece) -> Vec<Edge> {
+    let mut open: std::collections::HashMap<(u32, u32), usize> = Default::default();
+    let mut edges = Vec::new();
+    for (f, face) in piece.faces.iter().enumerate() {
+        for (k, &a) in face.iter().enumerate() {
+            let b = face[(k + 1) % face.len()];
+            let key = (a.min(b), a.max(b));
+            if let Some(other) = open.remove(&key) {
+                edges.push(Edge {
+                    ends: [key.0 as usize, key.1 as usize],
+                    faces: [other, f],
+                });
+            } else {
+                open.insert(key, f);
+            }
+        }
+    }
+    let normal = |e: &Edge, i: usize| piece.face_normals[e.faces[i]];
+    edges.retain(|e| normal(e, 0).cross(&normal(e, 1)).norm() > 1e-9);
+    edges
+}
+
+/// An edge's arc on the Gauss map: the normals of its two faces, `a` and `b`, and `b x a`
+/// (for a fixed piece, the negated normals: the arc of the Minkowski difference).
+#[derive(Clone, Copy, Debug, Default)]
+struct Arc {
+    a: Vector3<f64>,
+    b: Vector3<f64>,
+    b_x_a: Vector3<f64>,
+}
+
+impl Arc {
+    fn new(a: Vector3<f64>, b: Vector3<f64>) -> Self {
+        Arc {
+            a,
+            b,
+            b_x_a: b.cross(&a),
+        }
+    }
+
+    /// Whether this arc (of a moving piece) and `other` (of a fixed piece, negated) cross:
+    /// then the edges' cross product is a face normal of the Minkowski difference.
+    fn crosses(&self, other: &Arc) -> bool {
+        let cba = other.a.dot(&self.b_x_a);
+        let dba = other.b.dot(&self.b_x_a);
+        let adc = self.a.dot(&other.b_x_a);
+        let bdc = self.b.dot(&other.b_x_a);
+        cba * dba < 0.0 && adc * bdc < 0.0 && cba * bdc > 0.0
+    }
+}
+
+/// A fixed piece's edges and their (negated) arcs.
+#[derive(Clone)]
+struct FixedEdges {
+    edges: Vec<Edge>,
+    arcs: Vec<Arc>,
+}
+
+/// A [`PenetrationProbe`] with what [`GapProbe::signed_gap`] needs of the fixed pieces' edges.
+#[derive(Clone)]
+pub struct GapProbe {
+    probe: PenetrationProbe,
+    fixed_edges: Vec<FixedEdges>,
+}
+
+impl GapProbe {
+    /// Prepares the fixed solid placed at `pose` in the world.
+    pub fn new(fixed: &Solid, pose: &Isometry3<f64>) -> Self {
+        let probe = PenetrationProbe::new(fixed, pose);
+        let fixed_edges = (fixed.pieces.iter().zip(&probe.fixed))
+            .map(|(piece, posed)| {
+                let edges = edges_of(piece);
+                let normal = |e: &Edge, i: usize| -posed.face_normals[e.faces[i]];
+                let arcs = (edges.iter())
+                    .map(|e| Arc::new(normal(e, 0), normal(e, 1)))
+                    .collect();
+                FixedEdges { edges, arcs }
+            })
+            .collect();
+        GapProbe { probe, fixed_edges }
+    }
+}
+
+/// What [`GapProbe::signed_gap`] remembers of a piece pair.
 #[derive(Clone, Copy, Debug)]
 struct Hint {
-    /// Index of the axis that gave the pair's gap ([`posed_gap`]'s numbering).
+    /// Index of the candidate that gave the pair's gap ([`PiecePair::projected`]'s numbering).
     axis: usize,
     gap_m: f64,
 }
@@ -43,6 +160,12 @@ struct MovingPiece {
     radius_m: f64,
     /// Its own extents along its face normals, in its own frame.
     local_extents: Vec<(f64, f64)>,
+    edges: Vec<Edge>,
+    /// The edges' arcs and the piece's centre (the mean of its vertices), at the pose the
+    /// normals are at.
+    arcs: Vec<Arc>,
+    centre: P3,
+    local_centre: P3,
     /// The fixed pieces within the margin and [`LIST_SLACK`] of the piece's bounds as they
     /// were when listed (and those bounds): while its bounds stay within the slack of those,
     /// the pieces near it are among these.
@@ -63,6 +186,17 @@ impl MovingPiece {
                 .collect(),
             listed: Vec::new(),
             listed_bounds: None,
+            edges: edges_of(piece),
+            arcs: Vec::new(),
+            centre: P3::origin(),
+            local_centre: P3::from(
+                piece
+                    .vertices
+                    .iter()
+                    .map(|v| v.coords)
+                    .sum::<Vector3<f64>>()
+                    / piece.vertices.len() as f64,
+            ),
         }
     }
 
@@ -75,39 +209,42 @@ impl MovingPiece {
     }
 
     /// Places the vertices at `pose` (the normals, edges and extents wait for [`Self::orient`]).
-    fn place(&mut self, piece: &ConvexPiece, pose: &Isometry3<f64>) {
+    fn place(&mut self, piece: &ConvexPiece, pose: &Placement) {
         let vertices = &mut self.posed.vertices;
         vertices.clear();
-        vertices.extend(piece.vertices.iter().map(|v| pose * v));
+        vertices.extend(piece.vertices.iter().map(|v| pose.point(v)));
         self.posed.bounds = bounds_of(vertices.iter().copied());
     }
 
-    /// Turns the normals and edges to `pose`, and shifts the extents with it, once per call.
-    fn orient(&mut self, piece: &ConvexPiece, pose: &Isometry3<f64>, call: u64) -> &Posed {
+    /// Turns the normals and arcs to `pose`, and shifts the extents and the centre with it, once
+    /// per call (the edges are the vertices').
+    fn orient(&mut self, piece: &ConvexPiece, pose: &Placement, call: u64) -> &MovingPiece {
         if self.oriented_at != call {
             let posed = &mut self.posed;
             posed.face_normals.clear();
-            posed
-                .face_normals
-                .extend(piece.face_normals.iter().map(|n| pose * n));
-            posed.edge_dirs.clear();
-            posed
-                .edge_dirs
-                .extend(piece.edge_dirs.iter().map(|e| pose * e));
-            let shift = pose.translation.vector;
+            (posed.face_normals).extend(piece.face_normals.iter().map(|n| pose.rotation * n));
+            let shift = pose.translation;
             posed.face_extents.clear();
             posed.face_extents.extend(
                 (posed.face_normals.iter().zip(&self.local_extents))
                     .map(|(n, (lo, hi))| (lo + n.dot(&shift), hi + n.dot(&shift))),
             );
+            self.arcs.clear();
+            let normal = |e: &Edge, i: usize| posed.face_normals[e.faces[i]];
+            (self.arcs).extend(
+                self.edges
+                    .iter()
+                    .map(|e| Arc::new(normal(e, 0), normal(e, 1))),
+            );
+            self.centre = pose.point(&self.local_centre);
             self.oriented_at = call;
         }
-        &self.posed
+        self
     }
 }
 
 /// Each piece pair's last gap (or a lower bound of it) and axis, for
-/// [`PenetrationProbe::signed_gap`] (one per search), and the buffers its calls reuse.
+/// [`GapProbe::signed_gap`] (one per search), and the buffers its calls reuse.
 #[derive(Clone, Default)]
 pub struct GapHints {
     /// Sorted by the pair (moving piece, fixed piece).
@@ -150,64 +287,117 @@ impl GapHints {
     }
 }
 
-/// The separating-axis candidate `k` of two pieces: the face normals of `a`, then those of
-/// `b`, then the cross products of their edge directions (row by row); `None` for a cross
-/// product of parallel edges.
-fn axis(a: &Posed, b: &Posed, k: usize) -> Option<Vector3<f64>> {
-    let (na, nb) = (a.face_normals.len(), b.face_normals.len());
-    if k < na {
-        return Some(a.face_normals[k]);
-    }
-    if k < na + nb {
-        return Some(b.face_normals[k - na]);
-    }
-    let e = k - na - nb;
-    let c = a.edge_dirs[e / b.edge_dirs.len()].cross(&b.edge_dirs[e % b.edge_dirs.len()]);
-    let len = c.norm();
-    (len > 1e-9).then(|| c / len)
+/// Two pieces as [`PiecePair::gap`] sees them: the moving one (with its arcs and centre) and the
+/// fixed one (with its negated arcs).
+struct PiecePair<'a> {
+    a: &'a MovingPiece,
+    b: &'a Posed,
+    b_edges: &'a FixedEdges,
 }
 
-/// The extents of `a` and `b` along candidate `k` ([`axis`]); a face normal's own piece gives
-/// its kept [`Posed::face_extents`].
-fn extents(a: &Posed, b: &Posed, k: usize) -> Option<((f64, f64), (f64, f64))> {
-    let na = a.face_normals.len();
-    let axis = axis(a, b, k)?;
-    Some(match k {
-        k if k < na => (a.face_extents[k], project(&b.vertices, &axis)),
-        k if k < na + b.face_normals.len() => (project(&a.vertices, &axis), b.face_extents[k - na]),
-        _ => (project(&a.vertices, &axis), project(&b.vertices, &axis)),
-    })
-}
-
-/// The largest separation (metres; negative: minus the overlap depth) of two convex pieces
-/// along the separating-axis candidates ([`axis`]), and the candidate that gives it: minus the
-/// penetration depth when they overlap. `first` is tried first (the last call's axis). Stops
-/// as soon as it reaches `enough` (the caller's smallest gap so far, which this pair can then
-/// not lower) and returns the separation found by then.
-fn posed_gap(a: &Posed, b: &Posed, enough: f64, first: Option<usize>) -> (f64, usize) {
-    let mut best = (f64::NEG_INFINITY, 0);
-    let count = a.face_normals.len() + b.face_normals.len() + a.edge_dirs.len() * b.edge_dirs.len();
-    for k in first.into_iter().chain(0..count) {
-        let Some(((a0, a1), (b0, b1))) = extents(a, b, k) else {
-            continue;
+impl PiecePair<'_> {
+    /// Separation along candidate `k` by the projection of both pieces (any `k`; `None` for a
+    /// cross product of parallel edges). The candidates: the face normals of `a`, then those of
+    /// `b`, then one per pair of their edges (row by row).
+    fn projected(&self, k: usize) -> Option<f64> {
+        let (a, b) = (&self.a.posed, self.b);
+        let (na, nb) = (a.face_normals.len(), b.face_normals.len());
+        let ((a0, a1), (b0, b1)) = if k < na {
+            (a.face_extents[k], project(&b.vertices, &a.face_normals[k]))
+        } else if k < na + nb {
+            let n = &b.face_normals[k - na];
+            (project(&a.vertices, n), b.face_extents[k - na])
+        } else {
+            let (ea, eb) = self.edge_pair(k - na - nb);
+            let n = self.edge_axis(ea, eb)?.0;
+            (project(&a.vertices, &n), project(&b.vertices, &n))
         };
-        let sep = (b0 - a1).max(a0 - b1);
-        if sep > best.0 {
-            best = (sep, k);
-        }
-        if best.0 >= enough {
-            break;
-        }
+        Some((b0 - a1).max(a0 - b1))
     }
-    best
+
+    /// The edges of candidate `k - na - nb`.
+    fn edge_pair(&self, e: usize) -> (&Edge, &Edge) {
+        let nb = self.b_edges.edges.len();
+        (&self.a.edges[e / nb], &self.b_edges.edges[e % nb])
+    }
+
+    /// The unit cross product of two edges, turned away from `a`'s centre, and a point of
+    /// each edge; `None` for parallel edges.
+    fn edge_axis(&self, ea: &Edge, eb: &Edge) -> Option<(Vector3<f64>, P3, P3)> {
+        let (va, vb) = (&self.a.posed.vertices, &self.b.vertices);
+        let (pa, pb) = (va[ea.ends[0]], vb[eb.ends[0]]);
+        let (da, db) = (va[ea.ends[1]] - pa, vb[eb.ends[1]] - pb);
+        let n = da.cross(&db);
+        let len = n.norm();
+        if len <= 1e-9 * da.norm() * db.norm() {
+            return None;
+        }
+        let n = n / len;
+        let n = if n.dot(&(pa - self.a.centre)) < 0.0 {
+            -n
+        } else {
+            n
+        };
+        Some((n, pa, pb))
+    }
+
+    /// The largest separation (metres; negative: minus the overlap depth) along the face
+    /// normals and the edge pairs whose arcs cross, and the candidate that gives it: minus the
+    /// penetration depth when they overlap. `first` is tried first (the last call's candidate,
+    /// by projection). Stops as soon as it reaches `enough` (the caller's smallest gap so far,
+    /// which this pair can then not lower) and returns the separation found by then.
+    fn gap(&self, enough: f64, first: Option<usize>) -> (f64, usize) {
+        let mut best = (f64::NEG_INFINITY, 0);
+        let mut reached = |sep: f64, k: usize| {
+            if sep > best.0 {
+                best = (sep, k);
+            }
+            best.0 >= enough
+        };
+        let tried = first.and_then(|k| Some((self.projected(k)?, k)));
+        if let Some((sep, k)) = tried
+            && reached(sep, k)
+        {
+            return best;
+        }
+        let faces = self.a.posed.face_normals.len() + self.b.face_normals.len();
+        for k in 0..faces {
+            let sep = self.projected(k).expect("a face normal is an axis");
+            if reached(sep, k) {
+                return best;
+            }
+        }
+        let nb = self.b_edges.edges.len();
+        for (i, (ea, arc_a)) in self.a.edges.iter().zip(&self.a.arcs).enumerate() {
+            for (j, (eb, arc_b)) in self
+                .b_edges
+                .edges
+                .iter()
+                .zip(&self.b_edges.arcs)
+                .enumerate()
+            {
+                if !arc_a.crosses(arc_b) {
+                    continue;
+                }
+                let Some((n, pa, pb)) = self.edge_axis(ea, eb) else {
+                    continue;
+                };
+                if reached(n.dot(&(pb - pa)), faces + i * nb + j) {
+                    return best;
+                }
+            }
+        }
+        best
+    }
 }
 
-impl PenetrationProbe {
+impl GapProbe {
     /// The signed gap (metres) between `moving` placed at `pose` and the fixed solid: over the
     /// piece pairs whose bounds come within `margin_m`, the least of each pair's largest
-    /// separation along the separating-axis candidates ([`posed_gap`]); `margin_m` when no pair
-    /// comes that close. Negative: minus the penetration depth ([`Self::max_penetration`]) of
-    /// the deepest pair; zero exactly when touching; positive: a lower bound of the distance.
+    /// separation along the separating-axis candidates ([`PiecePair::gap`]); `margin_m` when no pair
+    /// comes that close. Negative: minus the penetration depth of
+    /// the deepest pair ([`PenetrationProbe::max_penetration`]); zero exactly when touching;
+    /// positive: a lower bound of the distance.
     ///
     /// `hints` remembers, from the previous call, a lower bound of each pair's signed distance
     /// and the axis that gave it: the pair closest then is tried first and each pair on its last
@@ -228,21 +418,16 @@ impl PenetrationProbe {
             hints.pieces = moving.pieces.iter().map(MovingPiece::new).collect();
         }
         hints.call += 1;
-        self.near_pairs(moving, pose, margin_m, hints);
-        let least = self.least_gap(moving, pose, margin_m, hints);
+        let pose = Placement::of(pose);
+        self.near_pairs(moving, &pose, margin_m, hints);
+        let least = self.least_gap(moving, &pose, margin_m, hints);
         hints.moved = None;
         least
     }
 
     /// Places every moving piece at `pose` and lists the pairs whose bounds come within
     /// `margin_m` into `hints.near`, each with its hint from the last call.
-    fn near_pairs(
-        &self,
-        moving: &Solid,
-        pose: &Isometry3<f64>,
-        margin_m: f64,
-        hints: &mut GapHints,
-    ) {
+    fn near_pairs(&self, moving: &Solid, pose: &Placement, margin_m: f64, hints: &mut GapHints) {
         hints.near.clear();
         let mut known = hints.pairs.iter().peekable();
         for (p, piece) in moving.pieces.iter().enumerate() {
@@ -251,13 +436,15 @@ impl PenetrationProbe {
             let slack_m = LIST_SLACK * margin_m;
             if !placed.still_listed(slack_m) {
                 let bounds = placed.posed.bounds;
-                self.near_into(&bounds, margin_m + slack_m, &mut placed.listed);
+                self.probe
+                    .near_into(&bounds, margin_m + slack_m, &mut placed.listed);
                 placed.listed_bounds = Some(bounds);
             }
             hints.fixed_near.clear();
             hints.fixed_near.extend(
-                (placed.listed.iter().copied())
-                    .filter(|&f| within(&placed.posed.bounds, &self.fixed[f].bounds, margin_m)),
+                (placed.listed.iter().copied()).filter(|&f| {
+                    within(&placed.posed.bounds, &self.probe.fixed[f].bounds, margin_m)
+                }),
             );
             for &f in &hints.fixed_near {
                 let hint = loop {
@@ -281,7 +468,7 @@ impl PenetrationProbe {
     fn least_gap(
         &self,
         moving: &Solid,
-        pose: &Isometry3<f64>,
+        pose: &Placement,
         margin_m: f64,
         hints: &mut GapHints,
     ) -> f64 {
@@ -308,8 +495,12 @@ impl PenetrationProbe {
                 hints.found[i] = Some(b);
                 continue;
             }
-            let placed = hints.pieces[p].orient(&moving.pieces[p], pose, hints.call);
-            let (gap, axis) = posed_gap(placed, &self.fixed[f], least, hint.map(|h| h.axis));
+            let pair = PiecePair {
+                a: hints.pieces[p].orient(&moving.pieces[p], pose, hints.call),
+                b: &self.probe.fixed[f],
+                b_edges: &self.fixed_edges[f],
+            };
+            let (gap, axis) = pair.gap(least, hint.map(|h| h.axis));
             least = least.min(gap);
             hints.found[i] = Some(Hint { axis, gap_m: gap });
         }
@@ -364,11 +555,11 @@ mod tests {
     #[test]
     fn the_gap_is_minus_the_depth_when_overlapping_and_positive_when_apart() {
         let fixed = solid(vec![cube(0.0, 0.0, 0.0), cube(3.5, 0.0, 0.0)]);
-        let probe = PenetrationProbe::new(&fixed, &Isometry3::identity());
+        let probe = GapProbe::new(&fixed, &Isometry3::identity());
         let moving = solid(vec![cube(0.0, 0.0, 0.0)]);
         let (mut overlapping, mut apart) = (0, 0);
         for pose in path() {
-            let depth = probe.max_penetration(&moving, &pose);
+            let depth = probe.probe.max_penetration(&moving, &pose);
             let gap = probe.signed_gap(&moving, &pose, 0.5, &mut GapHints::default());
             if depth > 0.0 {
                 overlapping += 1;
@@ -384,7 +575,7 @@ mod tests {
     #[test]
     fn hints_change_no_sign_and_no_depth_only_the_bound_of_a_distance() {
         let fixed = solid(vec![cube(0.0, 0.0, 0.0), cube(3.5, 0.0, 0.0)]);
-        let probe = PenetrationProbe::new(&fixed, &Isometry3::identity());
+        let probe = GapProbe::new(&fixed, &Isometry3::identity());
         let moving = solid(vec![cube(0.0, 0.0, 0.0), cube(0.0, 0.0, 1.0)]);
         let poses = path();
         let mut hints = GapHints::default();
