@@ -161,16 +161,14 @@ struct MovingPiece {
     /// Its own extents along its face normals, in its own frame.
     local_extents: Vec<(f64, f64)>,
     edges: Vec<Edge>,
-    /// The edges' arcs and the piece's centre (the mean of its vertices), at the pose the
-    /// normals are at.
-    arcs: Vec<Arc>,
+    /// The piece's centre (the mean of its vertices), at the pose the normals are at.
     centre: P3,
     local_centre: P3,
     /// The fixed pieces within the margin and [`LIST_SLACK`] of the piece's bounds as they
-    /// were when listed (and those bounds): while its bounds stay within the slack of those,
-    /// the pieces near it are among these.
+    /// were when listed (and those bounds, and the margin, m): while its bounds stay within the
+    /// slack of those, the pieces near it with that margin are among these.
     listed: Vec<usize>,
-    listed_bounds: Option<(P3, P3)>,
+    listed_at: Option<(P3, P3, f64)>,
 }
 
 impl MovingPiece {
@@ -185,9 +183,8 @@ impl MovingPiece {
                 .map(|n| project(&piece.vertices, n))
                 .collect(),
             listed: Vec::new(),
-            listed_bounds: None,
+            listed_at: None,
             edges: edges_of(piece),
-            arcs: Vec::new(),
             centre: P3::origin(),
             local_centre: P3::from(
                 piece
@@ -200,11 +197,12 @@ impl MovingPiece {
         }
     }
 
-    /// Whether its bounds lie within `slack_m` of those it was listed at.
-    fn still_listed(&self, slack_m: f64) -> bool {
+    /// Whether its bounds lie within `slack_m` of those it was listed at, with `margin_m`.
+    fn still_listed(&self, margin_m: f64, slack_m: f64) -> bool {
         let (lo, hi) = self.posed.bounds;
-        self.listed_bounds.is_some_and(|(l0, h0)| {
-            (0..3).all(|i| lo[i] >= l0[i] - slack_m && hi[i] <= h0[i] + slack_m)
+        self.listed_at.is_some_and(|(l0, h0, margin)| {
+            margin == margin_m
+                && (0..3).all(|i| lo[i] >= l0[i] - slack_m && hi[i] <= h0[i] + slack_m)
         })
     }
 
@@ -216,7 +214,29 @@ impl MovingPiece {
         self.posed.bounds = bounds_of(vertices.iter().copied());
     }
 
-    /// Turns the normals and arcs to `pose`, and shifts the extents and the centre with it, once
+    /// The separation from `fixed` along face normal `k` (of this piece, then of `fixed`, as
+    /// [`PiecePair::projected`] numbers them) with only the vertices placed; `None` past them.
+    fn face_gap(
+        &self,
+        piece: &ConvexPiece,
+        fixed: &Posed,
+        pose: &Placement,
+        k: usize,
+    ) -> Option<f64> {
+        let na = piece.face_normals.len();
+        let ((a0, a1), (b0, b1)) = if k < na {
+            let n = pose.rotation * piece.face_normals[k];
+            let (lo, hi) = self.local_extents[k];
+            let shift = n.dot(&pose.translation);
+            ((lo + shift, hi + shift), project(&fixed.vertices, &n))
+        } else {
+            let n = fixed.face_normals.get(k - na)?;
+            (project(&self.posed.vertices, n), fixed.face_extents[k - na])
+        };
+        Some((b0 - a1).max(a0 - b1))
+    }
+
+    /// Turns the normals to `pose`, and shifts the extents and the centre with it, once
     /// per call (the edges are the vertices').
     fn orient(&mut self, piece: &ConvexPiece, pose: &Placement, call: u64) -> &MovingPiece {
         if self.oriented_at != call {
@@ -229,13 +249,6 @@ impl MovingPiece {
                 (posed.face_normals.iter().zip(&self.local_extents))
                     .map(|(n, (lo, hi))| (lo + n.dot(&shift), hi + n.dot(&shift))),
             );
-            self.arcs.clear();
-            let normal = |e: &Edge, i: usize| posed.face_normals[e.faces[i]];
-            (self.arcs).extend(
-                self.edges
-                    .iter()
-                    .map(|e| Arc::new(normal(e, 0), normal(e, 1))),
-            );
             self.centre = pose.point(&self.local_centre);
             self.oriented_at = call;
         }
@@ -244,7 +257,8 @@ impl MovingPiece {
 }
 
 /// Each piece pair's last gap (or a lower bound of it) and axis, for
-/// [`GapProbe::signed_gap`] (one per search), and the buffers its calls reuse.
+/// [`GapProbe::signed_gap`] (one per search), and the buffers its calls reuse: for one probe
+/// and one moving solid.
 #[derive(Clone, Default)]
 pub struct GapHints {
     /// Sorted by the pair (moving piece, fixed piece).
@@ -287,8 +301,8 @@ impl GapHints {
     }
 }
 
-/// Two pieces as [`PiecePair::gap`] sees them: the moving one (with its arcs and centre) and the
-/// fixed one (with its negated arcs).
+/// Two pieces as [`PiecePair::gap`] sees them: the moving one (with its centre) and the fixed
+/// one (with its negated arcs).
 struct PiecePair<'a> {
     a: &'a MovingPiece,
     b: &'a Posed,
@@ -368,7 +382,9 @@ impl PiecePair<'_> {
             }
         }
         let nb = self.b_edges.edges.len();
-        for (i, (ea, arc_a)) in self.a.edges.iter().zip(&self.a.arcs).enumerate() {
+        let normals = &self.a.posed.face_normals;
+        for (i, ea) in self.a.edges.iter().enumerate() {
+            let arc_a = Arc::new(normals[ea.faces[0]], normals[ea.faces[1]]);
             for (j, (eb, arc_b)) in self
                 .b_edges
                 .edges
@@ -434,11 +450,11 @@ impl GapProbe {
             let placed = &mut hints.pieces[p];
             placed.place(piece, pose);
             let slack_m = LIST_SLACK * margin_m;
-            if !placed.still_listed(slack_m) {
+            if !placed.still_listed(margin_m, slack_m) {
                 let bounds = placed.posed.bounds;
                 self.probe
                     .near_into(&bounds, margin_m + slack_m, &mut placed.listed);
-                placed.listed_bounds = Some(bounds);
+                placed.listed_at = Some((bounds.0, bounds.1, margin_m));
             }
             hints.fixed_near.clear();
             hints.fixed_near.extend(
@@ -495,9 +511,19 @@ impl GapProbe {
                 hints.found[i] = Some(b);
                 continue;
             }
+            // The last axis first, before turning the piece's normals where it is a face's.
+            let fixed = &self.probe.fixed[f];
+            let piece = &moving.pieces[p];
+            if let Some(h) = hint.and_then(|h| {
+                let gap_m = hints.pieces[p].face_gap(piece, fixed, pose, h.axis)?;
+                (gap_m >= least).then_some(Hint { gap_m, ..h })
+            }) {
+                hints.found[i] = Some(h);
+                continue;
+            }
             let pair = PiecePair {
                 a: hints.pieces[p].orient(&moving.pieces[p], pose, hints.call),
-                b: &self.probe.fixed[f],
+                b: fixed,
                 b_edges: &self.fixed_edges[f],
             };
             let (gap, axis) = pair.gap(least, hint.map(|h| h.axis));
