@@ -281,12 +281,13 @@ impl PenetrationProbe {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::twin::geometry::planar::rect;
     use crate::twin::geometry::solid::{Solid, ZPlane};
 
-    fn cube(x: f64, y: f64, z: f64) -> ConvexPiece {
+    /// A unit cube with its least corner at (x, y, z).
+    pub(in crate::twin::physics) fn cube(x: f64, y: f64, z: f64) -> ConvexPiece {
         ConvexPiece::slab(
             &rect(x, y, x + 1.0, y + 1.0),
             ZPlane::flat(z),

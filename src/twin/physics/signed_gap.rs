@@ -546,16 +546,7 @@ impl GapProbe {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::twin::geometry::planar::rect;
-    use crate::twin::geometry::solid::ZPlane;
-
-    fn cube(x: f64, y: f64, z: f64) -> ConvexPiece {
-        ConvexPiece::slab(
-            &rect(x, y, x + 1.0, y + 1.0),
-            ZPlane::flat(z),
-            ZPlane::flat(z + 1.0),
-        )
-    }
+    use crate::twin::physics::penetration::tests::cube;
 
     fn solid(pieces: Vec<ConvexPiece>) -> Solid {
         Solid {
