@@ -351,8 +351,9 @@ enum Touch {
 /// returned), where `gap` is a signed gap, continuous and exact at zero, and `gap0` is positive,
 /// the gap at zero or an estimate of it (it weighs the first secant only; zero is tested only
 /// if it ends up the free end). The bracket is found by doubling from the step `first`, then
-/// narrowed by regula falsi with the Illinois modification (superlinear on piecewise-smooth
-/// gaps), each step kept half a tolerance inside the bracket so that the last two close it.
+/// narrowed by regula falsi with the Anderson-Bjorck modification (superlinear on
+/// piecewise-smooth gaps), each step kept half a tolerance inside the bracket so that the last
+/// two close it.
 fn first_touch(
     gap: impl Fn(f64) -> f64,
     gap0: f64,
