@@ -16,9 +16,6 @@ pub(super) struct Posed {
     pub(super) face_normals: Vec<Vector3<f64>>,
     pub(super) edge_dirs: Vec<Vector3<f64>>,
     pub(super) bounds: (P3, P3),
-    /// The least and largest projection of the piece's own vertices on each of its face normals
-    /// (for [`super::signed_gap`]; empty where it is not needed).
-    pub(super) face_extents: Vec<(f64, f64)>,
 }
 
 impl Posed {
@@ -34,16 +31,7 @@ impl Posed {
             face_normals: piece.face_normals.iter().map(|n| iso * n).collect(),
             edge_dirs: piece.edge_dirs.iter().map(|e| iso * e).collect(),
             bounds,
-            face_extents: Vec::new(),
         }
-    }
-
-    /// The same piece with its [`Posed::face_extents`].
-    fn with_face_extents(mut self) -> Self {
-        self.face_extents = (self.face_normals.iter())
-            .map(|n| project(&self.vertices, n))
-            .collect();
-        self
     }
 }
 
@@ -185,9 +173,7 @@ fn tree_box((lo, hi): &(P3, P3), margin: f64) -> Aabb {
 impl PenetrationProbe {
     /// Prepares the fixed solid placed at `pose` in the world.
     pub fn new(fixed: &Solid, pose: &Isometry3<f64>) -> Self {
-        let fixed: Vec<Posed> = (fixed.pieces.iter())
-            .map(|p| Posed::new(p, pose).with_face_extents())
-            .collect();
+        let fixed: Vec<Posed> = (fixed.pieces.iter()).map(|p| Posed::new(p, pose)).collect();
         let boxes: Vec<Aabb> = fixed.iter().map(|f| tree_box(&f.bounds, 0.0)).collect();
         PenetrationProbe {
             tree: Bvh::from_leaves(BvhBuildStrategy::Binned, &boxes),

@@ -99,35 +99,47 @@ impl Arc {
     }
 }
 
-/// A fixed piece's edges and their (negated) arcs.
+/// What [`GapProbe::signed_gap`] keeps of a fixed piece beside its placement: its edges, their
+/// (negated) arcs, and its own extents along its face normals.
 #[derive(Clone)]
-struct FixedEdges {
+struct FixedPiece {
     edges: Vec<Edge>,
     arcs: Vec<Arc>,
+    face_extents: Vec<(f64, f64)>,
 }
 
-/// A [`PenetrationProbe`] with what [`GapProbe::signed_gap`] needs of the fixed pieces' edges.
+/// A [`PenetrationProbe`] with what [`GapProbe::signed_gap`] needs of the fixed pieces.
 #[derive(Clone)]
 pub struct GapProbe {
     probe: PenetrationProbe,
-    fixed_edges: Vec<FixedEdges>,
+    fixed_pieces: Vec<FixedPiece>,
 }
 
 impl GapProbe {
     /// Prepares the fixed solid placed at `pose` in the world.
     pub fn new(fixed: &Solid, pose: &Isometry3<f64>) -> Self {
         let probe = PenetrationProbe::new(fixed, pose);
-        let fixed_edges = (fixed.pieces.iter().zip(&probe.fixed))
+        let fixed_pieces = (fixed.pieces.iter().zip(&probe.fixed))
             .map(|(piece, posed)| {
                 let edges = edges_of(piece);
                 let normal = |e: &Edge, i: usize| -posed.face_normals[e.faces[i]];
                 let arcs = (edges.iter())
                     .map(|e| Arc::new(normal(e, 0), normal(e, 1)))
                     .collect();
-                FixedEdges { edges, arcs }
+                let face_extents = (posed.face_normals.iter())
+                    .map(|n| project(&posed.vertices, n))
+                    .collect();
+                FixedPiece {
+                    edges,
+                    arcs,
+                    face_extents,
+                }
             })
             .collect();
-        GapProbe { probe, fixed_edges }
+        GapProbe {
+            probe,
+            fixed_pieces,
+        }
     }
 }
 
@@ -160,6 +172,8 @@ struct MovingPiece {
     radius_m: f64,
     /// Its own extents along its face normals, in its own frame.
     local_extents: Vec<(f64, f64)>,
+    /// The same at the pose the normals are at.
+    face_extents: Vec<(f64, f64)>,
     edges: Vec<Edge>,
     /// The piece's centre (the mean of its vertices), at the pose the normals are at.
     centre: P3,
@@ -182,6 +196,7 @@ impl MovingPiece {
             local_extents: (piece.face_normals.iter())
                 .map(|n| project(&piece.vertices, n))
                 .collect(),
+            face_extents: Vec::new(),
             listed: Vec::new(),
             listed_at: None,
             edges: edges_of(piece),
@@ -219,7 +234,7 @@ impl MovingPiece {
     fn face_gap(
         &self,
         piece: &ConvexPiece,
-        fixed: &Posed,
+        (fixed, fixed_piece): (&Posed, &FixedPiece),
         pose: &Placement,
         k: usize,
     ) -> Option<f64> {
@@ -231,7 +246,8 @@ impl MovingPiece {
             ((lo + shift, hi + shift), project(&fixed.vertices, &n))
         } else {
             let n = fixed.face_normals.get(k - na)?;
-            (project(&self.posed.vertices, n), fixed.face_extents[k - na])
+            let extents = fixed_piece.face_extents[k - na];
+            (project(&self.posed.vertices, n), extents)
         };
         Some((b0 - a1).max(a0 - b1))
     }
@@ -244,8 +260,8 @@ impl MovingPiece {
             posed.face_normals.clear();
             (posed.face_normals).extend(piece.face_normals.iter().map(|n| pose.rotation * n));
             let shift = pose.translation;
-            posed.face_extents.clear();
-            posed.face_extents.extend(
+            self.face_extents.clear();
+            self.face_extents.extend(
                 (posed.face_normals.iter().zip(&self.local_extents))
                     .map(|(n, (lo, hi))| (lo + n.dot(&shift), hi + n.dot(&shift))),
             );
@@ -306,7 +322,7 @@ impl GapHints {
 struct PiecePair<'a> {
     a: &'a MovingPiece,
     b: &'a Posed,
-    b_edges: &'a FixedEdges,
+    b_piece: &'a FixedPiece,
 }
 
 impl PiecePair<'_> {
@@ -317,10 +333,13 @@ impl PiecePair<'_> {
         let (a, b) = (&self.a.posed, self.b);
         let (na, nb) = (a.face_normals.len(), b.face_normals.len());
         let ((a0, a1), (b0, b1)) = if k < na {
-            (a.face_extents[k], project(&b.vertices, &a.face_normals[k]))
+            (
+                self.a.face_extents[k],
+                project(&b.vertices, &a.face_normals[k]),
+            )
         } else if k < na + nb {
             let n = &b.face_normals[k - na];
-            (project(&a.vertices, n), b.face_extents[k - na])
+            (project(&a.vertices, n), self.b_piece.face_extents[k - na])
         } else {
             let (ea, eb) = self.edge_pair(k - na - nb);
             let n = self.edge_axis(ea, eb)?.0;
@@ -331,8 +350,8 @@ impl PiecePair<'_> {
 
     /// The edges of candidate `k - na - nb`.
     fn edge_pair(&self, e: usize) -> (&Edge, &Edge) {
-        let nb = self.b_edges.edges.len();
-        (&self.a.edges[e / nb], &self.b_edges.edges[e % nb])
+        let nb = self.b_piece.edges.len();
+        (&self.a.edges[e / nb], &self.b_piece.edges[e % nb])
     }
 
     /// The unit cross product of two edges, turned away from `a`'s centre, and a point of
@@ -381,15 +400,15 @@ impl PiecePair<'_> {
                 return best;
             }
         }
-        let nb = self.b_edges.edges.len();
+        let nb = self.b_piece.edges.len();
         let normals = &self.a.posed.face_normals;
         for (i, ea) in self.a.edges.iter().enumerate() {
             let arc_a = Arc::new(normals[ea.faces[0]], normals[ea.faces[1]]);
             for (j, (eb, arc_b)) in self
-                .b_edges
+                .b_piece
                 .edges
                 .iter()
-                .zip(&self.b_edges.arcs)
+                .zip(&self.b_piece.arcs)
                 .enumerate()
             {
                 if !arc_a.crosses(arc_b) {
@@ -512,7 +531,7 @@ impl GapProbe {
                 continue;
             }
             // The last axis first, before turning the piece's normals where it is a face's.
-            let fixed = &self.probe.fixed[f];
+            let fixed = (&self.probe.fixed[f], &self.fixed_pieces[f]);
             let piece = &moving.pieces[p];
             if let Some(h) = hint.and_then(|h| {
                 let gap_m = hints.pieces[p].face_gap(piece, fixed, pose, h.axis)?;
@@ -523,8 +542,8 @@ impl GapProbe {
             }
             let pair = PiecePair {
                 a: hints.pieces[p].orient(&moving.pieces[p], pose, hints.call),
-                b: fixed,
-                b_edges: &self.fixed_edges[f],
+                b: fixed.0,
+                b_piece: fixed.1,
             };
             let (gap, axis) = pair.gap(least, hint.map(|h| h.axis));
             least = least.min(gap);
