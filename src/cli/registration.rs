@@ -616,3 +616,34 @@ fn print_registration(r: &Registration, load_s: f64) {
         load_s, r.time.restarts_s, r.time.combine_s
     );
 }
+
+#[cfg(test)]
+mod tests {
+    use super::BuildArgs;
+    use clap::{Args, Command};
+    use pegtwin::method::manifold::build::SamplerConfig;
+
+    /// The robot sampler's defaults are written into `manifold build --help` by hand (the flags
+    /// are options, so that the geometric sampler can refuse them): they must be the sampler's.
+    #[test]
+    fn build_help_states_the_robot_samplers_defaults() {
+        let help = BuildArgs::augment_args(Command::new("build"))
+            .render_long_help()
+            .to_string();
+        let robot = SamplerConfig::default();
+        for (flag, default) in [
+            ("episodes", robot.episodes.to_string()),
+            ("episode-s", robot.episode_s.to_string()),
+        ] {
+            let text = help
+                .split(&format!("--{flag} <"))
+                .nth(1)
+                .and_then(|rest| rest.split("\n\n").next())
+                .unwrap_or_else(|| panic!("--{flag} is not in the help"));
+            assert!(
+                text.contains(&format!("[default: {default}]")),
+                "--{flag}'s help says {text:?}, the sampler's default is {default}"
+            );
+        }
+    }
+}
