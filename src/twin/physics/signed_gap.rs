@@ -625,8 +625,32 @@ mod tests {
             if fresh <= 0.0 {
                 assert_eq!(hinted, fresh, "{k}");
             } else {
+                let apart = distance(&moving, pose, &fixed);
                 assert!(hinted > 0.0 && hinted >= fresh, "{k}: {hinted} {fresh}");
+                assert!(
+                    hinted <= apart + 1e-5,
+                    "{k}: {hinted} beyond the distance {apart}"
+                );
             }
         }
+    }
+
+    /// The distance between `moving` at `pose` and `fixed` (parry's, in f32), m.
+    fn distance(moving: &Solid, pose: &Isometry3<f64>, fixed: &Solid) -> f64 {
+        use parry3d::math::{Pose, Vector};
+        let placed = |p: &ConvexPiece| {
+            let c = p.centroid();
+            let at = Pose::from_translation(Vector::new(c.x as f32, c.y as f32, c.z as f32));
+            (at, p.collider_shape().expect("a cube is a shape"))
+        };
+        let fixed: Vec<_> = fixed.pieces.iter().map(placed).collect();
+        let mut least = f64::INFINITY;
+        for a in moving.pieces.iter().map(|p| placed(&p.transformed(pose))) {
+            for b in &fixed {
+                let d = parry3d::query::distance(&a.0, &*a.1, &b.0, &*b.1).expect("convex shapes");
+                least = least.min(d.distance as f64);
+            }
+        }
+        least
     }
 }
