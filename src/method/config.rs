@@ -385,6 +385,25 @@ impl TrialConfig {
                 )));
             }
         }
+        self.ensure_valid_insertion()?;
+        if !(self.phase1_s > 0.0 && self.phase1_s <= MAX_T_OBS_S) {
+            return Err(Error::Input(format!(
+                "phase1_s {} s: expected more than 0 and at most {MAX_T_OBS_S} s",
+                self.phase1_s
+            )));
+        }
+        self.search.ensure_valid()?;
+        self.observe_gains.ensure_valid()?;
+        self.align_gains.ensure_valid()?;
+        self.insert_gains.ensure_valid()?;
+        if self.method.stops_itself() {
+            self.adaptive.ensure_valid(self.t_obs_s)?;
+        }
+        self.registration.ensure_valid()
+    }
+
+    /// Rejects insertion settings a trial cannot run with, naming the field.
+    fn ensure_valid_insertion(&self) -> Result<()> {
         if !(self.insert_overshoot_m >= 0.0 && self.insert_overshoot_m <= 0.05) {
             return Err(Error::Input(format!(
                 "insert_overshoot_m {} m: expected 0 to 0.05 m",
@@ -421,20 +440,7 @@ impl TrialConfig {
                 self.insert_seat_window_m
             )));
         }
-        if !(self.phase1_s > 0.0 && self.phase1_s <= MAX_T_OBS_S) {
-            return Err(Error::Input(format!(
-                "phase1_s {} s: expected more than 0 and at most {MAX_T_OBS_S} s",
-                self.phase1_s
-            )));
-        }
-        self.search.ensure_valid()?;
-        self.observe_gains.ensure_valid()?;
-        self.align_gains.ensure_valid()?;
-        self.insert_gains.ensure_valid()?;
-        if self.method.stops_itself() {
-            self.adaptive.ensure_valid(self.t_obs_s)?;
-        }
-        self.registration.ensure_valid()
+        Ok(())
     }
 }
 

@@ -465,40 +465,9 @@ fn read_part(
     };
     Ok(match (&e.mesh, &e.builtin) {
         (Some(mesh), _) if e.decompose.is_some() => {
-            let path = dir.join(mesh);
             let units = e.units.expect("checked: a mesh has units");
             let c = clearance_mm.expect("checked: decompose comes with a clearance") * 1e-3;
-            // A convex part, or a stack of extrusions, keeps its exact pieces.
-            let exact = mesh_part(&read_mesh(&path, units)?, &path)?;
-            if exact.deviation_m <= EXACT_PART_M {
-                let solid = Solid {
-                    pieces: exact.pieces,
-                    boundary: None,
-                };
-                let source = path.display().to_string();
-                return Ok(part(
-                    solid,
-                    source,
-                    vec![(path, exact.deviation_m)],
-                    Vec::new(),
-                ));
-            }
-            let cache = crate::files::cache_folder(None)?;
-            let cut = decompose::decompose(&path, units, c * MAX_DEVIATION_OF_CLEARANCE, &cache)?;
-            let warning = format!(
-                "{}: cut by CoACD into {} convex parts at threshold {:.5}, {:.4} mm off its surface{}",
-                path.display(),
-                cut.pieces.len(),
-                cut.threshold,
-                cut.deviation_m * 1e3,
-                if cut.cached { " (cached)" } else { "" }
-            );
-            let solid = Solid {
-                pieces: cut.pieces,
-                boundary: None,
-            };
-            let source = path.display().to_string();
-            part(solid, source, vec![(path, cut.deviation_m)], vec![warning])
+            decomposed_mesh(&dir.join(mesh), units, c)?
         }
         (Some(mesh), _) => {
             let path = dir.join(mesh);
@@ -535,6 +504,45 @@ fn read_part(
             let source = format!("{} body {body}", file.display());
             part(read.solid, source, read.deviations, Vec::new())
         }
+    })
+}
+
+/// A mesh part whose `decompose` is set: its exact pieces when it is convex or a stack of
+/// extrusions, else CoACD's cut to a deviation within the share of the clearance `clearance_m`
+/// allows (with a warning saying so).
+fn decomposed_mesh(path: &Path, units: MeshUnits, clearance_m: f64) -> Result<ReadPart> {
+    let exact = mesh_part(&read_mesh(path, units)?, path)?;
+    let source = path.display().to_string();
+    if exact.deviation_m <= EXACT_PART_M {
+        return Ok(ReadPart {
+            solid: Solid {
+                pieces: exact.pieces,
+                boundary: None,
+            },
+            source,
+            deviations: vec![(path.to_path_buf(), exact.deviation_m)],
+            warnings: Vec::new(),
+        });
+    }
+    let cache = crate::files::cache_folder(None)?;
+    let threshold_m = clearance_m * MAX_DEVIATION_OF_CLEARANCE;
+    let cut = decompose::decompose(path, units, threshold_m, &cache)?;
+    let warning = format!(
+        "{}: cut by CoACD into {} convex parts at threshold {:.5}, {:.4} mm off its surface{}",
+        path.display(),
+        cut.pieces.len(),
+        cut.threshold,
+        cut.deviation_m * 1e3,
+        if cut.cached { " (cached)" } else { "" }
+    );
+    Ok(ReadPart {
+        solid: Solid {
+            pieces: cut.pieces,
+            boundary: None,
+        },
+        source,
+        deviations: vec![(path.to_path_buf(), cut.deviation_m)],
+        warnings: vec![warning],
     })
 }
 
