@@ -106,6 +106,12 @@ fn calibrate_recovers_a_known_friction_flags_the_unreachable_and_resumes() {
     let out = t.join("cal");
     let o = calibrate(&scenario, &file, &out, cache, &[]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // Without a terminal, each draw says so in a line, with the time it took and what is left.
+    assert!(
+        stderr(&o).contains("draw 10 of 10 done (") && stderr(&o).contains(" left)"),
+        "{}",
+        stderr(&o)
+    );
     let p = posterior(&out);
     let q = &p["quantiles_5_50_95"][0];
     let (lo, hi) = (q[0].as_f64().unwrap(), q[2].as_f64().unwrap());

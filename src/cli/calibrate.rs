@@ -11,6 +11,8 @@ use pegtwin::campaign::scenario::Scenario;
 use pegtwin::error::Result;
 use std::io::IsTerminal;
 use std::path::PathBuf;
+use std::sync::Mutex;
+use std::time::Instant;
 
 #[derive(Args)]
 pub struct CalibrateArgs {
@@ -48,9 +50,10 @@ pub fn calibrate_command(args: CalibrateArgs) -> Result<i32> {
     };
     let shown = std::io::stderr().is_terminal();
     let bar = ProgressBar::new(targets.file.samples as u64);
+    let clock = DrawClock::default();
     let on_draw = |done: usize, all: usize| match shown {
         true => bar.set_position(done as u64),
-        false => eprintln!("draw {done} of {all} done"),
+        false => eprintln!("{}", clock.line(done, all)),
     };
     let posterior = campaign::worker_pool(args.threads)?
         .install(|| calibrate(&scenario, &targets, &args.out, options, &run, &on_draw))?;
@@ -88,4 +91,40 @@ pub fn calibrate_command(args: CalibrateArgs) -> Result<i32> {
         return Ok(1);
     }
     Ok(0)
+}
+
+/// Times the draws this run finishes, for the line each prints where no bar is shown (a batch
+/// job's log): a draw is a whole campaign, minutes apart.
+struct DrawClock {
+    start: Instant,
+    /// The first draw this run finished (a resumed run starts past the finished ones).
+    first: Mutex<Option<usize>>,
+}
+
+impl Default for DrawClock {
+    fn default() -> Self {
+        DrawClock {
+            start: Instant::now(),
+            first: Mutex::new(None),
+        }
+    }
+}
+
+impl DrawClock {
+    /// "draw 7 of 24 done (13 minutes in this run, about 2 hours left)".
+    fn line(&self, done: usize, all: usize) -> String {
+        let first = *self
+            .first
+            .lock()
+            .expect("no clock user panicked")
+            .get_or_insert(done);
+        let elapsed = self.start.elapsed();
+        let per_draw = elapsed.div_f64((done + 1 - first) as f64);
+        let left = per_draw.mul_f64(all.saturating_sub(done) as f64);
+        format!(
+            "draw {done} of {all} done ({} in this run, about {} left)",
+            indicatif::HumanDuration(elapsed),
+            indicatif::HumanDuration(left)
+        )
+    }
 }
