@@ -163,10 +163,10 @@ struct Near {
 /// does not depend on the pose.
 #[derive(Clone, Default)]
 struct MovingPiece {
-    /// The piece at the present call's pose; its normals, edges and extents only where a pair
-    /// was tested ([`Self::oriented_at`]).
+    /// The piece at the present call's pose; its normals and edges only where a pair was
+    /// tested ([`Self::oriented_at`]).
     posed: Posed,
-    /// The call whose pose the normals, edges and extents are at.
+    /// The call whose pose the normals, edges, [`Self::face_extents`] and centre are at.
     oriented_at: u64,
     /// Its largest distance of a vertex from the moving solid's origin, m.
     radius_m: f64,
