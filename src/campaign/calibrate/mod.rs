@@ -395,12 +395,13 @@ fn posterior(targets: &Targets, evaluations: Vec<Evaluation>, trials_per_draw: u
 /// Seeds the posterior's points apart from the draws.
 const POINTS_STREAM: u64 = 0x9e37_79b9_7f4a_7c15;
 
-/// The scenario's `[cell]` with each free value's range set to its posterior 90 % range, as a
-/// TOML section a scenario can take.
+/// The scenario's `[cell]` with each free value's range set to its posterior 90 % range (the
+/// encoder offsets' half-range, one number, to its posterior median), as a TOML section a
+/// scenario can take.
 pub fn calibrated_cell(scenario: &Scenario, targets: &Targets, posterior: &Posterior) -> String {
     let mut cell = scenario.cell.clone();
     for (f, q) in targets.free.iter().zip(&posterior.quantiles) {
-        f.value.set_range(&mut cell, [q[0], q[2]]);
+        f.value.set_calibrated(&mut cell, *q);
     }
     #[derive(Serialize)]
     struct Section<'a> {

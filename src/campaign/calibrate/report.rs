@@ -32,7 +32,8 @@ pub fn write(out: &Path, scenario: &Scenario, targets: &Targets, p: &Posterior) 
     crate::files::write_atomically(&out.join("posterior.json"), &json)?;
     let cell = calibrated_cell(scenario, targets, p);
     let head = "# The calibrated real cell (pegtwin calibrate): each fitted value's range is its\n\
-                # posterior 90 % range; the rest is the scenario's own.\n";
+                # posterior 90 % range (the encoder offsets' half-range its median); the rest is the\n\
+                # scenario's own.\n";
     crate::files::write_atomically(&out.join("cell.toml"), format!("{head}{cell}").as_bytes())?;
     crate::files::write_atomically(
         &out.join("report.html"),

@@ -175,8 +175,18 @@ impl FreeValue {
         self.set_range(cell, [value, value]);
     }
 
+    /// Sets the value in `cell` from its posterior 5 / 50 / 95 % quantiles: a range to the 90 %
+    /// range; the encoder offsets' half-range, which draws each trial's offsets and cannot hold
+    /// a range itself, to the median (its 95 % point would widen every trial's offsets).
+    pub fn set_calibrated(self, cell: &mut RealCell, q: [f64; 3]) {
+        match self {
+            FreeValue::EncoderOffsetRad => cell.encoder_offset_rad = q[1],
+            _ => self.set_range(cell, [q[0], q[2]]),
+        }
+    }
+
     /// Sets the value's range in `cell` (the encoder offsets' half-range to its top).
-    pub fn set_range(self, cell: &mut RealCell, range: [f64; 2]) {
+    fn set_range(self, cell: &mut RealCell, range: [f64; 2]) {
         match self {
             FreeValue::JointFrictionScale => cell.joint_friction_scale = range,
             FreeValue::ContactFriction => cell.contact_friction = range,
@@ -392,4 +402,18 @@ fn unique<T: PartialEq>(items: impl Iterator<Item = T>) -> Vec<T> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_calibrated_range_is_the_90_percent_range_and_a_half_range_the_median() {
+        let mut cell = RealCell::default();
+        FreeValue::JointFrictionScale.set_calibrated(&mut cell, [3.0, 4.0, 5.0]);
+        assert_eq!(cell.joint_friction_scale, [3.0, 5.0]);
+        FreeValue::EncoderOffsetRad.set_calibrated(&mut cell, [1e-3, 1.3e-3, 1.6e-3]);
+        assert_eq!(cell.encoder_offset_rad, 1.3e-3);
+    }
 }
