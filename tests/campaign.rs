@@ -617,7 +617,8 @@ fn manifolds_built_side_by_side_are_the_files_built_alone() {
 }
 
 /// Every scenario shipped in `scenarios/` (and under it) loads and passes its checks (assembly
-/// files and calibration targets, `*.targets.toml`, beside them are read by their own tests).
+/// files, cell files and calibration targets, `*.targets.toml`, beside them are read by their
+/// own tests or the scenarios that take them).
 #[test]
 fn every_shipped_scenario_loads() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
@@ -630,6 +631,7 @@ fn every_shipped_scenario_loads() {
                 dirs.push(path);
             } else if path.extension().is_some_and(|e| e == "toml")
                 && !is_assembly(&path)
+                && !is_cell_file(&path)
                 && !path.to_string_lossy().ends_with(".targets.toml")
             {
                 pegtwin::campaign::scenario::Scenario::load(&path)
@@ -644,6 +646,13 @@ fn every_shipped_scenario_loads() {
 /// Assembly files live beside scenarios; they have a `[peg]` section.
 fn is_assembly(path: &Path) -> bool {
     std::fs::read_to_string(path).is_ok_and(|t| t.lines().any(|l| l.trim() == "[peg]"))
+}
+
+/// Cell files (`cell_file = "..."` in a scenario) hold a `[cell]` section and nothing else.
+fn is_cell_file(path: &Path) -> bool {
+    let text = std::fs::read_to_string(path).unwrap();
+    let value: toml::Table = toml::from_str(&text).unwrap();
+    value.keys().eq(["cell"])
 }
 
 /// The peak resident memory of a running child so far, bytes (Linux: VmHWM).
