@@ -411,8 +411,10 @@ fn finish(
     };
     let observations = observation.downsampled(config.observations);
     let recorder = recorder.map(|r| &mut *r as &mut dyn Recorder);
+    let read_shift = setup.reads_off().then(|| read_t_true(&cell));
     let mut session = Session::resume(&mut cell, recorder, fault, Phase::Observe);
     let mut stages = Stages::new(search_s, observation, observations.len(), session.dt_s());
+    stages.read_shift = read_shift;
     if session.fault().is_none() {
         (stages.estimate, stages.register_wall_s) = match estimator {
             Estimator::Register(manifold) => {
@@ -433,6 +435,13 @@ fn finish(
     let fault = session.fault().cloned();
     let final_tcp = cell.truth().tcp_pose();
     Ok(setup.score(pair, config, stages, fault, &final_tcp, wall_s()))
+}
+
+/// `read_T_true`: the TCP pose the encoders give (forward kinematics of the joints as read)
+/// relative to the true one, base frame. Near the pose it is taken at, it carries the true hole
+/// to the hole as the robot reads it.
+fn read_t_true(cell: &WorkCell) -> Iso {
+    cell.measurements().tcp * cell.truth().tcp_pose().inverse()
 }
 
 /// Per-axis errors of the estimate, mm and deg (estimate against truth, in the true hole frame).
@@ -525,6 +534,13 @@ pub struct TrialResult {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimate_covariance: Option<[[f64; 6]; 6]>,
     pub errors: Option<AxisErrors>,
+    /// The estimate's errors against the hole as the robot reads it (the true hole moved by the
+    /// shift between the TCP pose its encoders give and the true one where it observed), mm and
+    /// deg: what registration can know and the insertion acts on, `errors` less the arm's
+    /// kinematic calibration error (docs/registration.md). Present only when the cell's
+    /// encoders carry offsets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub read_errors: Option<AxisErrors>,
     /// Final tip depth below the true mouth, mm (none when the trial stopped before inserting).
     pub final_depth_mm: Option<f64>,
     pub contact_observations: usize,
@@ -558,6 +574,14 @@ pub(crate) struct Setup {
 }
 
 impl Setup {
+    /// Whether the cell's encoders read the joints off by constant offsets (a kinematic
+    /// calibration error).
+    fn reads_off(&self) -> bool {
+        self.draw
+            .as_ref()
+            .is_some_and(|d| !d.encoder_offset_rad.is_empty())
+    }
+
     /// The set-up of trial `seeds` of `pair`, its arm of `joints` joints in the cell `params`.
     pub(crate) fn draw(
         pair: &PartPair,
@@ -681,6 +705,7 @@ impl Setup {
             estimate_std: None,
             estimate_covariance: None,
             errors: None,
+            read_errors: None,
             final_depth_mm: None,
             contact_observations: 0,
             observations_used: 0,
@@ -718,6 +743,8 @@ impl Setup {
                 .estimate
                 .as_ref()
                 .map(|r| axis_errors(&self.truth, &r.estimate.to_iso())),
+            read_errors: (stages.estimate.as_ref().zip(stages.read_shift))
+                .map(|(r, shift)| axis_errors(&(shift * self.truth), &r.estimate.to_iso())),
             final_depth_mm: Some(final_depth * 1e3),
             contact_observations: stages.observation.contacts.len(),
             observations_used: stages.observations_used,
@@ -783,6 +810,9 @@ struct Stages {
     register_wall_s: f64,
     insertion: Insertion,
     dt_s: f64,
+    /// `read_T_true`, base frame: how far the TCP pose the encoders give lies from the true one
+    /// at the end of the observation, when the encoders carry offsets.
+    read_shift: Option<Iso>,
 }
 
 impl Stages {
@@ -795,6 +825,7 @@ impl Stages {
             register_wall_s: 0.0,
             insertion: Insertion::default(),
             dt_s,
+            read_shift: None,
         }
     }
 
