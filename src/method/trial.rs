@@ -18,7 +18,7 @@ use crate::method::config::{Method, Start, TrialConfig};
 use crate::method::insert::{InsertEnd, Insertion, insert};
 use crate::method::manifold::Manifold;
 use crate::method::observe::{Observation, ObservationPhase};
-use crate::method::register::{Registration, RegistrationConfig, register};
+use crate::method::register::{Registration, RegistrationConfig, distinct_poses, register};
 use crate::method::search::{search, start_pose};
 use crate::method::seeds::TrialSeeds;
 use crate::method::session::{Phase, Recorder, Session};
@@ -861,6 +861,9 @@ fn estimate_hole(
     }
     let manifold = manifold
         .ok_or_else(|| Error::Input("the manifold method needs a reference manifold".into()))?;
+    // An arm that barely moves repeats its readings: with no more distinct poses than an
+    // observation normal needs neighbours, no estimate, as with too few observations
+    // (registration refuses such a set as input).
     if distinct_poses(observations) <= config.registration.normal_k {
         return Ok((None, 0.0));
     }
@@ -872,16 +875,6 @@ fn estimate_hole(
     };
     let reg = register(manifold, observations, &init, &registration)?;
     Ok((Some(reg), t0.elapsed().as_secs_f64()))
-}
-
-/// How many distinct poses `observations` holds. An arm that barely moves repeats its readings:
-/// with no more distinct poses than an observation normal needs neighbours, a trial has no
-/// estimate, as with too few observations (registration refuses such a set as input).
-fn distinct_poses(observations: &[Pose6]) -> usize {
-    let bits = |p: &Pose6| p.0.map(|v| (v + 0.0).to_bits());
-    (observations.iter().map(bits))
-        .collect::<std::collections::BTreeSet<_>>()
-        .len()
 }
 
 /// Every `FZ_PROFILE_DT_S` of a per-step |Fz| series, rounded to 0.01 N.
@@ -904,18 +897,5 @@ pub fn axis_errors(truth: &Iso, estimate: &Iso) -> AxisErrors {
         roll_deg,
         pitch_deg,
         yaw_deg,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn repeated_readings_count_once_and_a_signed_zero_with_its_twin() {
-        let p = |x: f64| Pose6([x, 0.0, 0.0, 0.0, 0.0, 0.0]);
-        let readings: Vec<Pose6> = (0..1000).map(|i| p((i % 9) as f64 * 1e-4)).collect();
-        assert_eq!(distinct_poses(&readings), 9);
-        assert_eq!(distinct_poses(&[p(0.0), p(-0.0)]), 1);
     }
 }

@@ -282,19 +282,15 @@ fn check_observations(observations: &[Pose6], k: usize, metric: &PoseMetric) -> 
     for (i, p) in observations.iter().enumerate() {
         p.ensure_plausible(&format!("observation {i}"))?;
     }
-    let scaled: Vec<[f64; 6]> = observations.iter().map(|p| metric.scaled(p)).collect();
-    let distinct: std::collections::BTreeSet<[u64; 6]> = scaled
-        .iter()
-        .map(|s| s.map(|v| (v + 0.0).to_bits()))
-        .collect();
-    if distinct.len() < k {
+    let distinct = distinct_poses(observations);
+    if distinct < k {
         return Err(Error::Input(format!(
-            "only {} distinct observations among {} (repeated rows?): the observation normals \
-             need k = {k}",
-            distinct.len(),
+            "only {distinct} distinct observations among {} (repeated rows?): the observation \
+             normals need k = {k}",
             observations.len()
         )));
     }
+    let scaled: Vec<[f64; 6]> = observations.iter().map(|p| metric.scaled(p)).collect();
     let spread = principal_spreads(&scaled);
     if spread[1] <= 1e-6 * spread[0] {
         return Err(Error::Input(format!(
@@ -306,6 +302,14 @@ fn check_observations(observations: &[Pose6], k: usize, metric: &PoseMetric) -> 
         )));
     }
     Ok(())
+}
+
+/// How many distinct poses `observations` holds (a zero and a negative zero are one).
+pub fn distinct_poses(observations: &[Pose6]) -> usize {
+    let bits = |p: &Pose6| p.0.map(|v| (v + 0.0).to_bits());
+    (observations.iter().map(bits))
+        .collect::<std::collections::BTreeSet<_>>()
+        .len()
 }
 
 /// Standard deviations of a scaled point cloud along its principal axes, largest first.
@@ -467,6 +471,14 @@ fn median(values: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn repeated_readings_count_once_and_a_signed_zero_with_its_twin() {
+        let p = |x: f64| Pose6([x, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        let readings: Vec<Pose6> = (0..1000).map(|i| p((i % 9) as f64 * 1e-4)).collect();
+        assert_eq!(distinct_poses(&readings), 9);
+        assert_eq!(distinct_poses(&[p(0.0), p(-0.0)]), 1);
+    }
 
     /// A restart that ended at `p` (m, rad), not rejected, with no covariance of its own.
     fn result(p: [f64; 6]) -> RestartResult {
