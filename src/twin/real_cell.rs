@@ -148,6 +148,11 @@ impl RealCell {
         self.profile == Profile::Ideal
     }
 
+    /// Whether its encoders read the joints off by drawn constant offsets.
+    pub fn reads_off(&self) -> bool {
+        !self.is_ideal() && self.encoder_offset_rad > 0.0
+    }
+
     /// The draw of the cell of an arm of `joints` joints seeded `seed` (`None`: the ideal cell
     /// draws nothing). Each value has its place in one ChaCha8 stream, in the order of
     /// [`CellDraw`]'s fields; the encoder offsets come last, one per joint, and only when their

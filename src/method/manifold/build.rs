@@ -120,8 +120,11 @@ pub struct Episode {
     pub fault: Option<SimFault>,
 }
 
-/// Runs one sampling episode: the hole at its nominal (known) pose, the peg aligned at the start
-/// depth, the motion with this episode's seed (perturbation and phase).
+/// Runs one sampling episode: the hole at its nominal pose, the peg aligned at the start depth,
+/// the motion with this episode's seed (perturbation and phase). The robot knows the hole as it
+/// reads it there ([`WorkCell::hole_as_read`]), as a cell that taught the hole by touching it
+/// does: it moves and records the poses `hole_T_peg` in its own frame, so that its encoders'
+/// offsets shift the manifold as they shift the poses it later observes, and cancel.
 pub fn run_episode(
     pair: &PartPair,
     robot: &RobotModel,
@@ -140,19 +143,20 @@ pub fn run_episode(
         config.gains.clone(),
         seed,
     )?;
+    let known = cell.hole_as_read().expect("the cell has the hole");
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut motion = config.motion.clone();
     motion.phase_s = rand::Rng::random_range(&mut rng, 0.0..1000.0);
     let mut noise =
         PerturbationState::new(motion.perturbation.clone(), rand::Rng::random(&mut rng));
     let drive = Drive {
-        base_t_hole: hole,
+        base_t_hole: known,
         motion: &motion,
         schedule: ScaleSchedule::constant(motion.scale),
         clearance_m: pair.clearance_m,
         duration_s: config.episode_s,
     };
-    let hole_inv = hole.inverse();
+    let hole_inv = known.inverse();
     let mut poses = Vec::new();
     let mut session = Session::new(&mut cell, None, Phase::Sample);
     drive.run(&mut session, &mut noise, |m| {
@@ -651,6 +655,61 @@ mod tests {
             assert_eq!(report.manifold.normals, alone.manifold.normals);
             assert_eq!(report.manifold.meta, alone.manifold.meta);
         }
+    }
+
+    #[test]
+    fn a_robot_whose_encoders_read_off_samples_the_hole_as_it_reads_it() {
+        // The same episode (seed, every other draw) with the encoders off by up to 2 mrad and
+        // with none: taught the hole as it reads it, the robot records its poses where the exact
+        // one does, within a small fraction of how far the offsets move its TCP reading (a robot
+        // that took the true hole for its reading would record them that far off).
+        let pair = crate::twin::geometry::build_builtin(
+            crate::twin::geometry::builtin_by_name("cross").unwrap(),
+            0.5e-3,
+        )
+        .unwrap();
+        let robot = crate::twin::robot::urdf::iiwa14().unwrap();
+        let exact = WorkCellParams {
+            cell: crate::twin::real_cell::RealCell::default(),
+            ..WorkCellParams::default()
+        };
+        let mut off = exact.clone();
+        off.cell.encoder_offset_rad = 2e-3;
+        let config = SamplerConfig {
+            episodes: 1,
+            episode_s: 2.0,
+            ..SamplerConfig::default()
+        };
+        let seed = seeds::episode(5, 0);
+        let mean_xy = |params: &WorkCellParams| {
+            let poses = run_episode(&pair, &robot, params, &config, seed)
+                .unwrap()
+                .poses;
+            assert!(poses.len() > 100, "{} contact poses", poses.len());
+            let n = poses.len() as f64;
+            [0, 1].map(|i| poses.iter().map(|p| p.0[i]).sum::<f64>() / n)
+        };
+        let (a, b) = (mean_xy(&exact), mean_xy(&off));
+        let hole = nominal_hole_pose(&pair, &off);
+        let start = tcp_in_hole(&hole, config.motion.descent.start_depth_m);
+        let cell = WorkCell::new(
+            &pair,
+            robot.clone(),
+            &off,
+            Some(hole),
+            &start,
+            config.gains,
+            seed,
+        )
+        .unwrap();
+        let read = cell.hole_as_read().unwrap();
+        let shift_m = (read.translation.vector - hole.translation.vector).norm();
+        assert!(shift_m > 1e-3, "the offsets move the reading {shift_m} m");
+        let apart_m = (a[0] - b[0]).hypot(a[1] - b[1]);
+        assert!(
+            apart_m < 0.05 * shift_m,
+            "{apart_m} m apart, reading shift {shift_m} m"
+        );
     }
 
     fn flows(source: EnergySource) -> EnergyFlows {

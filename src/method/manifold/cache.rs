@@ -126,12 +126,21 @@ pub struct Recipe<'a> {
     pub kind: Sampler,
 }
 
+/// How a robot whose encoders read off knows the hole it samples, for the cache's key: the
+/// files of cells with offsets built before the robot was taught the hole are rebuilt.
+const TAUGHT_HOLE_RULE: &str = "the hole as the robot reads it";
+
 impl Recipe<'_> {
     /// The checksum that names the cached file. The robot's includes the physics parameters and
-    /// the arm cell's contact prediction rule; the geometric one depends on the parts and the
+    /// the arm cell's contact prediction rule (and, for a cell whose encoders read off, how it
+    /// knows the hole); the geometric one depends on the parts and the
     /// motion's region only (not the cell: one file serves every physics), and is marked `geo`.
     pub fn key(&self) -> String {
         let json = match self.kind {
+            Sampler::Robot if self.params.cell.reads_off() => {
+                let physics = (&self.params.physics, ARM_PREDICTION_RULE);
+                serde_json::to_string(&(self, physics, TAUGHT_HOLE_RULE))
+            }
             Sampler::Robot => {
                 let physics = (&self.params.physics, ARM_PREDICTION_RULE);
                 serde_json::to_string(&(self, physics))

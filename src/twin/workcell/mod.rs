@@ -464,6 +464,21 @@ impl WorkCell {
     fn true_tcp_pose(&self) -> Iso {
         self.model.tcp_pose(&self.arm.q(&self.world))
     }
+
+    /// The hole pose as this robot reads it where it stands, base frame: the true hole carried by
+    /// `read_T_true`, the TCP pose its encoders' constant offsets give (without their noise)
+    /// relative to the true one. What a robot taught the hole by touching it holds as the hole's
+    /// pose; the true one exactly where the encoders have no offsets. `None`: no fixture.
+    pub fn hole_as_read(&self) -> Option<Iso> {
+        let hole = self.base_t_hole?;
+        let offsets = &self.sensors.params.encoder_offset_rad;
+        if offsets.is_empty() {
+            return Some(hole);
+        }
+        let q = self.arm.q(&self.world);
+        let read: Vec<f64> = q.iter().zip(offsets).map(|(q, o)| q + o).collect();
+        Some(self.believed.tcp_pose(&read) * self.model.tcp_pose(&q).inverse() * hole)
+    }
 }
 
 #[cfg(test)]
