@@ -133,17 +133,18 @@ const TAUGHT_HOLE_RULE: &str = "the hole as the robot reads it";
 impl Recipe<'_> {
     /// The checksum that names the cached file. The robot's includes the physics parameters and
     /// the arm cell's contact prediction rule (and, for a cell whose encoders read off, how it
-    /// knows the hole); the geometric one depends on the parts and the
-    /// motion's region only (not the cell: one file serves every physics), and is marked `geo`.
+    /// knows the hole); the geometric one depends on the parts and the motion's region only
+    /// (not the cell: one file serves every physics), and is marked `geo`.
     pub fn key(&self) -> String {
         let json = match self.kind {
-            Sampler::Robot if self.params.cell.reads_off() => {
-                let physics = (&self.params.physics, ARM_PREDICTION_RULE);
-                serde_json::to_string(&(self, physics, TAUGHT_HOLE_RULE))
-            }
             Sampler::Robot => {
                 let physics = (&self.params.physics, ARM_PREDICTION_RULE);
-                serde_json::to_string(&(self, physics))
+                let reads_off = self.params.cell.reads_off()
+                    || !self.params.sensors.encoder_offset_rad.is_empty();
+                match reads_off {
+                    true => serde_json::to_string(&(self, physics, TAUGHT_HOLE_RULE)),
+                    false => serde_json::to_string(&(self, physics)),
+                }
             }
             Sampler::Geometric => serde_json::to_string(&(
                 &self.sampler.motion,
