@@ -4,7 +4,7 @@
 
 use pegtwin::method::manifold::synthetic::SyntheticPair;
 use pegtwin::method::manifold::{Manifold, ManifoldMeta, UNITS};
-use pegtwin::method::register::uncertainty::AXIS_FLOOR;
+use pegtwin::method::register::uncertainty::axis_floor;
 use pegtwin::method::register::{PaperUpdate, RegistrationConfig, Solver, register};
 use pegtwin::pose::{Pose6, PoseMetric};
 use rand::{Rng, SeedableRng};
@@ -250,7 +250,7 @@ fn the_uncertainty_shrinks_with_more_observations_and_is_largest_along_z() {
         }
         // The part the data decide: the standard deviation above the calibration's floor.
         std::array::from_fn::<f64, 6, _>(|i| {
-            let (s, f) = (r.estimate_std[i], AXIS_FLOOR[i]);
+            let (s, f) = (r.estimate_std[i], axis_floor(m.meta.clearance_m)[i]);
             (s * s - f * f).max(0.0).sqrt()
         })
     };

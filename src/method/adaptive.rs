@@ -105,7 +105,7 @@ pub const SIGMAS: f64 = 2.0;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StopRule {
     pub max_std: [f64; 6],
-    /// The calibration's floor ([`uncertainty::AXIS_FLOOR`]): the part of each standard deviation
+    /// The calibration's floor at the pair's clearance ([`uncertainty::axis_floor`]): the part of each standard deviation
     /// that does not shrink with more observations.
     pub floor: [f64; 6],
 }
@@ -121,7 +121,7 @@ impl StopRule {
             .unwrap_or(lead_in / peg_radius_m(pair) / SIGMAS);
         StopRule {
             max_std: [xy, xy, f64::INFINITY, tilt, tilt, yaw],
-            floor: uncertainty::AXIS_FLOOR,
+            floor: uncertainty::axis_floor(Some(pair.clearance_m)),
         }
     }
 

@@ -220,8 +220,8 @@ pub struct Registration {
     pub kept: usize,
     /// The covariance of the estimate's error in the estimated hole frame (x, y, z m; roll,
     /// pitch, yaw rad), row by row: the covariance and spread of the restarts it was combined
-    /// from, scaled by the measured [`uncertainty::AXIS_SCALE`] with the floor
-    /// [`uncertainty::AXIS_FLOOR`] added (docs/registration.md, "Uncertainty").
+    /// from, scaled by the measured [`uncertainty::AXIS_SCALE`] with the floor of the manifold's
+    /// clearance ([`uncertainty::axis_floor`]) added (docs/registration.md, "Uncertainty").
     #[serde(default)]
     pub covariance: [[f64; 6]; 6],
     /// The standard deviation of each axis of `covariance` (m, rad).
@@ -252,7 +252,8 @@ pub fn register(
         .collect();
     let t1 = Instant::now();
     let estimate = combine_restarts(&mut restarts, &manifold.meta.metric, cfg.mad_threshold);
-    let covariance = uncertainty::estimate_covariance(&estimate, &restarts);
+    let floor = uncertainty::axis_floor(manifold.meta.clearance_m);
+    let covariance = uncertainty::estimate_covariance(&estimate, &restarts, &floor);
     let t2 = Instant::now();
     Ok(Registration {
         estimate: Pose6::from_iso(&estimate),
@@ -526,8 +527,8 @@ mod tests {
         let mean = combine_restarts(&mut rs, &metric, 3.0);
         assert!(rs.iter().all(|r| !r.rejected));
         assert_eq!(mean, se3_mean(&all, &metric));
-        let cov = uncertainty::estimate_covariance(&mean, &rs);
-        let floor = uncertainty::AXIS_FLOOR;
+        let floor = uncertainty::axis_floor(None);
+        let cov = uncertainty::estimate_covariance(&mean, &rs, &floor);
         assert!((0..4).all(|i| cov[i][i] > floor[i] * floor[i]), "{cov:?}");
     }
 }

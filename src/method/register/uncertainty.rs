@@ -15,7 +15,7 @@
 //!   keeps the correlation within a batch.
 //! - Over the restarts ([`estimate_covariance`]): the kept runs' covariances averaged, plus the
 //!   spread of their optima.
-//! - Calibrated per axis, `sigma² = (k s)² + f²` ([`AXIS_SCALE`] k, [`AXIS_FLOOR`] f), measured on
+//! - Calibrated per axis, `sigma² = (k s)² + f²` ([`AXIS_SCALE`] k, [`axis_floor`] f), measured on
 //!   a campaign of its own, not the trials its coverage is reported on: what the data leave out
 //!   (the reference manifold's own sampling, the print, the real cell's differences from it) does
 //!   not shrink with more observations, and an estimate the data call very certain still carries
@@ -32,7 +32,7 @@ use nalgebra::{Matrix6, Vector6};
 pub const BATCHES: usize = 10;
 
 /// The factor `k` each axis's standard deviation is multiplied by (x, y, z, roll, pitch, yaw),
-/// beside its floor [`AXIS_FLOOR`]: `sigma² = (k s)² + f²`. Fitted on the manifold method's
+/// beside its floor ([`axis_floor`]): `sigma² = (k s)² + f²`. Fitted on the manifold method's
 /// estimates of `scenarios/paper.toml` at 0.5 mm with `seed = 3` (another print of every pair
 /// than the paper's seed 1), trials 0-24 at t_obs 3-10 s (1 000 estimates; the coverage is
 /// reported on the paper's seed at 0.5 and 0.1 mm). For x and y (one pair of values over both
@@ -44,9 +44,35 @@ pub const BATCHES: usize = 10;
 /// "Uncertainty", has the measurement and the command.
 pub const AXIS_SCALE: [f64; 6] = [2.1, 2.1, 1.9, 8.8, 8.8, 3.1];
 
-/// The floor `f` under each axis's standard deviation, m and rad (x, y, z, roll, pitch, yaw):
-/// [`AXIS_SCALE`] has how it was fitted.
-pub const AXIS_FLOOR: [f64; 6] = [0.087e-3, 0.087e-3, 1.96e-3, 0.0, 0.0, 0.261 * DEG];
+/// The floor `f` under each axis's standard deviation (x, y, z, roll, pitch, yaw; m and rad) for
+/// a pair of diametral clearance `clearance_m` ([`UNKNOWN_CLEARANCE_M`] where a manifold does not
+/// say its own): x, y [`XY_FLOOR_M`] and yaw [`YAW_FLOOR_RAD`] times the square root of the
+/// clearance in millimetres, z [`Z_FLOOR_M`], none on roll and pitch. What the data leave out
+/// grows with the room the peg has: the least floor that puts 95.4 % of the x, y errors within
+/// 2 sigma was 61 um at 0.2 mm and 137 um at 1.0 mm (`scenarios/paper-sweep.toml`, t_obs 10 s,
+/// 125 estimates each), which one coefficient times the square root fits (136 x 0.45 = 61); the
+/// yaw's least floor grows the same way. docs/registration.md, "Uncertainty".
+pub fn axis_floor(clearance_m: Option<f64>) -> [f64; 6] {
+    let root_mm = (clearance_m.unwrap_or(UNKNOWN_CLEARANCE_M).max(0.0) / 1e-3).sqrt();
+    let xy = XY_FLOOR_M * root_mm;
+    [xy, xy, Z_FLOOR_M, 0.0, 0.0, YAW_FLOOR_RAD * root_mm]
+}
+
+/// The x, y floor at 1 mm of clearance, m: the least coefficient that puts 95.4 % of the x, y
+/// errors within 2 sigma over the fitting set, the paper sweep's 0.2 and 1.0 mm estimates at
+/// t_obs 10 s (250 estimates, `scenarios/paper-sweep.toml` cut to those clearances; the coverage
+/// is reported on its 0.1 and 0.5 mm, other clearances and prints).
+pub const XY_FLOOR_M: f64 = 0.136e-3;
+
+/// The yaw floor at 1 mm of clearance, rad, fitted as [`XY_FLOOR_M`] is.
+pub const YAW_FLOOR_RAD: f64 = 0.74 * DEG;
+
+/// The z floor, m, whatever the clearance: fitted with [`AXIS_SCALE`] at 0.5 mm.
+pub const Z_FLOOR_M: f64 = 1.96e-3;
+
+/// The clearance the floor is taken at when a manifold does not say its own (one imported without
+/// it), m: the paper's largest, so that the interval errs wide.
+pub const UNKNOWN_CLEARANCE_M: f64 = 1e-3;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
@@ -106,9 +132,13 @@ fn pseudo_inverse(h: &Matrix6<f64>) -> Matrix6<f64> {
 }
 
 /// The covariance of the combined estimate `mean` from the restarts the MAD test kept
-/// (`super::combine_restarts`), calibrated: scaled by [`AXIS_SCALE`], [`AXIS_FLOOR`]'s variances
-/// added to its diagonal.
-pub(super) fn estimate_covariance(mean: &Iso, restarts: &[RestartResult]) -> [[f64; 6]; 6] {
+/// (`super::combine_restarts`), calibrated: scaled by [`AXIS_SCALE`], the variances of `floor`
+/// ([`axis_floor`]) added to its diagonal.
+pub(super) fn estimate_covariance(
+    mean: &Iso,
+    restarts: &[RestartResult],
+    floor: &[f64; 6],
+) -> [[f64; 6]; 6] {
     let kept: Vec<(Iso, Matrix6<f64>)> = restarts
         .iter()
         .filter(|r| !r.rejected)
@@ -118,7 +148,7 @@ pub(super) fn estimate_covariance(mean: &Iso, restarts: &[RestartResult]) -> [[f
         })
         .collect();
     let scale = Matrix6::from_diagonal(&Vector6::from(AXIS_SCALE));
-    let floor = Matrix6::from_diagonal(&Vector6::from(AXIS_FLOOR.map(|f| f * f)));
+    let floor = Matrix6::from_diagonal(&Vector6::from(floor.map(|f| f * f)));
     rows(&(scale * combined_covariance(mean, &kept) * scale + floor))
 }
 
@@ -174,6 +204,18 @@ mod tests {
             (inv[(0, 0)] - 1.0).abs() < 1e-12 && inv[(5, 5)] >= 1e11,
             "{inv}"
         );
+    }
+
+    #[test]
+    fn the_floor_grows_as_the_root_of_the_clearance_through_the_fitted_floors() {
+        // The least x, y floors measured at 0.2 and 1.0 mm: 61 and 137 um (docs/registration.md).
+        let at = |c_mm: f64| axis_floor(Some(c_mm * 1e-3));
+        assert!((at(0.2)[0] - 61e-6).abs() < 1e-6, "{:?}", at(0.2));
+        assert!((at(1.0)[1] - 137e-6).abs() < 2e-6, "{:?}", at(1.0));
+        assert!((at(0.4)[5] / at(0.1)[5] - 2.0).abs() < 1e-12);
+        assert_eq!(at(0.7)[2], Z_FLOOR_M);
+        assert_eq!((at(0.7)[3], at(0.7)[4]), (0.0, 0.0));
+        assert_eq!(axis_floor(None), at(1.0), "an unknown clearance errs wide");
     }
 
     #[test]
