@@ -105,8 +105,8 @@ pub const SIGMAS: f64 = 2.0;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StopRule {
     pub max_std: [f64; 6],
-    /// The calibration's floor at the pair's clearance ([`uncertainty::axis_floor`]): the part of each standard deviation
-    /// that does not shrink with more observations.
+    /// The calibration's floor at the pair's clearance ([`uncertainty::axis_floor`]): the part of
+    /// each standard deviation that does not shrink with more observations.
     pub floor: [f64; 6],
 }
 
