@@ -105,14 +105,20 @@ pub const SIGMAS: f64 = 2.0;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StopRule {
     pub max_std: [f64; 6],
-    /// The calibration's floor at the pair's clearance ([`uncertainty::axis_floor`]): the part of
-    /// each standard deviation that does not shrink with more observations.
+    /// The calibration's floor at the reference manifold's clearance ([`uncertainty::axis_floor`],
+    /// as registration adds it): the part of each standard deviation that does not shrink with
+    /// more observations.
     pub floor: [f64; 6],
 }
 
 impl StopRule {
-    /// The limits for `pair`: `cfg`'s where it sets them, else half the insertion's tolerances.
-    pub fn for_pair(pair: &PartPair, cfg: &AdaptiveConfig) -> Self {
+    /// The limits for `pair`: `cfg`'s where it sets them, else half the insertion's tolerances;
+    /// the floor of a reference manifold of clearance `manifold_clearance_m` (its file's).
+    pub fn for_pair(
+        pair: &PartPair,
+        cfg: &AdaptiveConfig,
+        manifold_clearance_m: Option<f64>,
+    ) -> Self {
         let lead_in = lead_in_m(pair);
         let xy = cfg.max_std_xy_m.unwrap_or(lead_in / SIGMAS);
         let tilt = cfg.max_std_tilt_rad.unwrap_or(CRITICAL_TILT_RAD / SIGMAS);
@@ -121,7 +127,7 @@ impl StopRule {
             .unwrap_or(lead_in / peg_radius_m(pair) / SIGMAS);
         StopRule {
             max_std: [xy, xy, f64::INFINITY, tilt, tilt, yaw],
-            floor: uncertainty::axis_floor(Some(pair.clearance_m)),
+            floor: uncertainty::axis_floor(manifold_clearance_m),
         }
     }
 
@@ -215,7 +221,7 @@ mod tests {
     #[test]
     fn the_limits_follow_the_gap_the_chamfers_and_the_pegs_size() {
         let cross = build_builtin(builtin_by_name("cross").unwrap(), 0.5e-3).unwrap();
-        let rule = StopRule::for_pair(&cross, &AdaptiveConfig::default());
+        let rule = StopRule::for_pair(&cross, &AdaptiveConfig::default(), Some(0.5e-3));
         // Half of (0.25 mm + 0.3 mm + 0.3 mm).
         assert!(
             (rule.max_std[0] - 0.425e-3).abs() < 1e-12,
@@ -230,14 +236,14 @@ mod tests {
         assert!((rule.max_std[5] - 0.85e-3 / r / 2.0).abs() < 1e-12);
         // A tighter fit stops later: its limits are smaller.
         let tight = build_builtin(builtin_by_name("cross").unwrap(), 0.1e-3).unwrap();
-        let tight = StopRule::for_pair(&tight, &AdaptiveConfig::default());
+        let tight = StopRule::for_pair(&tight, &AdaptiveConfig::default(), Some(0.1e-3));
         assert!(tight.max_std[0] < rule.max_std[0]);
         // A limit set by hand wins.
         let set = AdaptiveConfig {
             max_std_xy_m: Some(1e-4),
             ..AdaptiveConfig::default()
         };
-        assert_eq!(StopRule::for_pair(&cross, &set).max_std[0], 1e-4);
+        assert_eq!(StopRule::for_pair(&cross, &set, None).max_std[0], 1e-4);
         assert!(rule.met(&[1e-4, 1e-4, 1.0, 0.01, 0.01, 0.001]));
         assert!(!rule.met(&[1e-3, 1e-4, 1.0, 0.01, 0.01, 0.001]));
     }

@@ -253,7 +253,7 @@ impl ObservingTrial {
         mut recorder: Option<&mut dyn Recorder>,
     ) -> Result<AdaptiveObservation> {
         let config = self.trial.config.clone();
-        let rule = StopRule::for_pair(pair, &config.adaptive);
+        let rule = StopRule::for_pair(pair, &config.adaptive, manifold.meta.clearance_m);
         let mut t = config.adaptive.check_from_s.min(config.t_obs_s);
         let mut last: Option<TimedRegistration> = None;
         let mut before: Option<(f64, [f64; 6])> = None;
