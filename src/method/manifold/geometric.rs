@@ -32,7 +32,7 @@ use crate::error::{Error, Result};
 use crate::method::primitives::SamplingMotion;
 use crate::pose::{Pose6, PoseMetric};
 use crate::twin::geometry::PartPair;
-use crate::twin::physics::signed_gap::{GapHints, GapProbe};
+use crate::twin::physics::signed_gap::{GapHints, GapProbe, NearLists};
 use nalgebra::Isometry3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -138,11 +138,17 @@ struct Centred {
     step_m: f64,
     /// The centred peg is free from the shallowest depth down to this one, m.
     free_to_m: f64,
+    /// The fixed pieces near each piece of the centred peg at the same depths, listed wide
+    /// enough for the poses of most draws from there ([`LIST_REACH`]).
+    lists: Vec<NearLists>,
 }
 
 /// Depths at which the centred peg's gap is sampled: a blocked stretch shorter than the region's
 /// depth over this goes unseen.
 const CENTRED_SAMPLES: usize = 256;
+/// How far, in clearances, a piece's bounds may move from the centred peg's before its near
+/// fixed pieces are looked up in the hole's tree rather than in the centred peg's lists.
+const LIST_REACH: f64 = 8.0;
 
 impl Centred {
     fn of(rays: &Rays) -> Centred {
@@ -171,12 +177,28 @@ impl Centred {
                 }
             }
         };
+        let lists = (0..CENTRED_SAMPLES)
+            .into_par_iter()
+            .map(|k| {
+                let pose = Pose6([0.0, 0.0, -(shallow_m + k as f64 * step_m), 0.0, 0.0, 0.0]);
+                let reach_m = LIST_REACH * rays.region.clearance_m;
+                let margin_m = GAP_MARGIN * rays.region.clearance_m;
+                (rays.probe).near_lists(&rays.pair.peg, &pose.to_iso(), margin_m, reach_m)
+            })
+            .collect();
         Centred {
             gaps,
             shallow_m,
             step_m,
             free_to_m,
+            lists,
         }
+    }
+
+    /// The near lists of the sampled depth nearest `depth_m`.
+    fn lists_at(&self, depth_m: f64) -> &NearLists {
+        let k = ((depth_m - self.shallow_m) / self.step_m).round().max(0.0) as usize;
+        &self.lists[k.min(self.lists.len() - 1)]
     }
 
     /// The centred peg's gap at `depth_m`, interpolated (positive), or `None` where it is
@@ -300,10 +322,11 @@ impl<'a> Rays<'a> {
     }
 
     /// Draw `i`: its depth and direction ([`Self::direction`]), then the first contact along it
-    /// from the centred pose (`hints`: a worker's buffers, forgotten first).
-    fn draw(&self, i: u64, centred: &Centred, hints: &mut GapHints) -> Draw {
-        hints.forget();
+    /// from the centred pose (`hints`: a worker's buffers, started afresh with the centred
+    /// peg's near lists at the nearest depth).
+    fn draw<'c>(&self, i: u64, centred: &'c Centred, hints: &mut GapHints<'c>) -> Draw {
         let (depth, dir, first) = self.direction(i);
+        hints.start(centred.lists_at(depth));
         let Some(gap0) = centred.gap_at(depth) else {
             return Draw::Blocked;
         };

@@ -143,6 +143,32 @@ impl GapProbe {
     }
 }
 
+/// The fixed pieces near each piece of a moving solid at one pose, listed wide: a search
+/// started with them ([`GapHints::start`]) takes a piece's near fixed pieces from here, and not
+/// from the fixed solid's tree, while its bounds stay within `reach_m` of those listed here.
+/// The pieces found are the same either way.
+#[derive(Clone, Debug, Default)]
+pub struct NearLists {
+    /// The signed gap's margin they serve, m.
+    margin_m: f64,
+    /// How far a piece's bounds may lie beyond those listed here, m.
+    reach_m: f64,
+    /// Per moving piece: its bounds at the listed pose, and the fixed pieces within the
+    /// margin, [`LIST_SLACK`] margins and `reach_m` of them (ascending).
+    pieces: Vec<((P3, P3), Vec<u32>)>,
+}
+
+impl NearLists {
+    /// The fixed pieces listed for moving piece `p`, if its `bounds` lie within the reach of
+    /// those it was listed at, for `margin_m`.
+    fn covering(&self, p: usize, bounds: &(P3, P3), margin_m: f64) -> Option<&[u32]> {
+        let ((l0, h0), list) = self.pieces.get(p)?;
+        let reach = self.reach_m;
+        let inside = (0..3).all(|i| bounds.0[i] >= l0[i] - reach && bounds.1[i] <= h0[i] + reach);
+        (margin_m == self.margin_m && inside).then_some(list.as_slice())
+    }
+}
+
 /// What [`GapProbe::signed_gap`] remembers of a piece pair.
 #[derive(Clone, Copy, Debug)]
 struct Hint {
@@ -276,9 +302,11 @@ impl MovingPiece {
 /// [`GapProbe::signed_gap`] (one per search), and the buffers its calls reuse: for one probe
 /// and one moving solid.
 #[derive(Clone, Default)]
-pub struct GapHints {
+pub struct GapHints<'a> {
     /// Sorted by the pair (moving piece, fixed piece).
     pairs: Vec<((usize, usize), Hint)>,
+    /// The near fixed pieces listed near the search's poses ([`Self::start`]).
+    lists: Option<&'a NearLists>,
     /// How far the moving solid may have moved since the last call: its origin, m, and its
     /// turn, rad; `None`: unknown.
     moved: Option<(f64, f64)>,
@@ -293,7 +321,7 @@ pub struct GapHints {
     fixed_near: Vec<usize>,
 }
 
-impl GapHints {
+impl<'a> GapHints<'a> {
     /// Tells the next call that the moving solid's origin has moved no more than
     /// `translation_m` since the last one, and the solid turned by no more than `turn_rad`: no
     /// point then moved farther than `translation_m + turn_rad` times its distance from the
@@ -307,6 +335,15 @@ impl GapHints {
     pub fn forget(&mut self) {
         self.pairs.clear();
         self.moved = None;
+        self.lists = None;
+    }
+
+    /// Starts a new search ([`Self::forget`]) whose poses lie near those of `lists`
+    /// ([`GapProbe::near_lists`]): a piece that moved beyond its listed fixed pieces takes them
+    /// from there while it can (the results are the same; the fixed solid's tree is slower).
+    pub fn start(&mut self, lists: &'a NearLists) {
+        self.forget();
+        self.lists = Some(lists);
     }
 
     /// How far any point of moving piece `p` may have moved since the last call, m.
@@ -465,14 +502,24 @@ impl GapProbe {
     fn near_pairs(&self, moving: &Solid, pose: &Placement, margin_m: f64, hints: &mut GapHints) {
         hints.near.clear();
         let mut known = hints.pairs.iter().peekable();
+        let lists = hints.lists;
         for (p, piece) in moving.pieces.iter().enumerate() {
             let placed = &mut hints.pieces[p];
             placed.place(piece, pose);
             let slack_m = LIST_SLACK * margin_m;
             if !placed.still_listed(margin_m, slack_m) {
                 let bounds = placed.posed.bounds;
-                self.probe
-                    .near_into(&bounds, margin_m + slack_m, &mut placed.listed);
+                let wide_m = margin_m + slack_m;
+                match lists.and_then(|l| l.covering(p, &bounds, margin_m)) {
+                    Some(listed) => {
+                        placed.listed.clear();
+                        placed.listed.extend(
+                            (listed.iter().map(|&f| f as usize))
+                                .filter(|&f| within(&bounds, &self.probe.fixed[f].bounds, wide_m)),
+                        );
+                    }
+                    None => self.probe.near_into(&bounds, wide_m, &mut placed.listed),
+                }
                 placed.listed_at = Some((bounds.0, bounds.1, margin_m));
             }
             hints.fixed_near.clear();
@@ -562,6 +609,35 @@ impl GapProbe {
     }
 }
 
+impl GapProbe {
+    /// The fixed pieces near each piece of `moving` at `pose` ([`NearLists`]), for searches
+    /// with `margin_m` whose pieces' bounds stay within `reach_m` of these.
+    pub fn near_lists(
+        &self,
+        moving: &Solid,
+        pose: &Isometry3<f64>,
+        margin_m: f64,
+        reach_m: f64,
+    ) -> NearLists {
+        // A millionth wider: a piece within the reach then keeps every fixed piece it can list,
+        // whatever the rounding.
+        let wide_m = ((1.0 + LIST_SLACK) * margin_m + reach_m) * (1.0 + 1e-6);
+        let mut listed = Vec::new();
+        let pieces = (moving.pieces.iter())
+            .map(|piece| {
+                let bounds = bounds_of(piece.vertices.iter().map(|v| pose * v));
+                self.probe.near_into(&bounds, wide_m, &mut listed);
+                (bounds, listed.iter().map(|&f| f as u32).collect())
+            })
+            .collect();
+        NearLists {
+            margin_m,
+            reach_m,
+            pieces,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -632,6 +708,41 @@ mod tests {
                     "{k}: {hinted} beyond the distance {apart}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn near_lists_change_no_gap_and_serve_only_within_their_reach() {
+        let fixed = solid(vec![cube(0.0, 0.0, 0.0), cube(3.5, 0.0, 0.0)]);
+        let probe = GapProbe::new(&fixed, &Isometry3::identity());
+        let moving = solid(vec![cube(0.0, 0.0, 0.0), cube(0.0, 0.0, 1.0)]);
+        let poses = path();
+        // Listed at the path's start, reaching a quarter of the way along it; a piece's list
+        // is renewed when it moves 0.4 (four margins of 0.1), from the lists, then the tree.
+        let lists = probe.near_lists(&moving, &poses[0], 0.1, 0.6);
+        let bounds = |k: usize, p: usize| {
+            let piece = moving.pieces[p].transformed(&poses[k]);
+            bounds_of(piece.vertices.iter().copied())
+        };
+        assert!(lists.covering(0, &bounds(0, 0), 0.1).is_some());
+        assert!(
+            lists.covering(0, &bounds(0, 0), 0.2).is_none(),
+            "another margin"
+        );
+        assert!(
+            lists.covering(0, &bounds(399, 0), 0.1).is_none(),
+            "beyond the reach"
+        );
+        let (mut listed, mut plain) = (GapHints::default(), GapHints::default());
+        listed.start(&lists);
+        for (k, pose) in poses.iter().enumerate() {
+            if k > 0 {
+                listed.moved(6e-3, 3e-3);
+                plain.moved(6e-3, 3e-3);
+            }
+            let a = probe.signed_gap(&moving, pose, 0.1, &mut listed);
+            let b = probe.signed_gap(&moving, pose, 0.1, &mut plain);
+            assert_eq!(a.to_bits(), b.to_bits(), "{k}: {a} against {b}");
         }
     }
 
