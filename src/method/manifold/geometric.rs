@@ -177,12 +177,12 @@ impl Centred {
                 }
             }
         };
+        let reach_m = LIST_REACH * rays.region.clearance_m;
+        let margin_m = GAP_MARGIN * rays.region.clearance_m;
         let lists = (0..CENTRED_SAMPLES)
             .into_par_iter()
             .map(|k| {
                 let pose = Pose6([0.0, 0.0, -(shallow_m + k as f64 * step_m), 0.0, 0.0, 0.0]);
-                let reach_m = LIST_REACH * rays.region.clearance_m;
-                let margin_m = GAP_MARGIN * rays.region.clearance_m;
                 (rays.probe).near_lists(&rays.pair.peg, &pose.to_iso(), margin_m, reach_m)
             })
             .collect();

@@ -607,9 +607,7 @@ impl GapProbe {
             }));
         least
     }
-}
 
-impl GapProbe {
     /// The fixed pieces near each piece of `moving` at `pose` ([`NearLists`]), for searches
     /// with `margin_m` whose pieces' bounds stay within `reach_m` of these.
     pub fn near_lists(
