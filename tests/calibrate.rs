@@ -272,15 +272,16 @@ fn bad_targets_are_refused_naming_the_field() {
     }
 }
 
-/// The paper's targets file is read against the paper scenario: every figure names a row, every
-/// value a range (the budget refusal comes after those checks, before any trial runs).
+/// The paper's targets file is read against the scenario it was calibrated on: every figure names
+/// a row, every value a range (the budget refusal comes after those checks, before any trial
+/// runs).
 #[test]
-fn the_paper_targets_are_read_against_the_paper_scenario() {
+fn the_paper_targets_are_read_against_the_paper_calibration_scenario() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     let o = pegtwin(&[
         "calibrate",
-        "scenarios/paper.toml",
+        "scenarios/paper-calibration.toml",
         "--targets",
         "scenarios/paper-cell.targets.toml",
         "--out",
@@ -290,7 +291,7 @@ fn the_paper_targets_are_read_against_the_paper_scenario() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(
-        stderr(&o).contains("24 draws x 500 trials"),
+        stderr(&o).contains("10 draws x 250 trials"),
         "{}",
         stderr(&o)
     );

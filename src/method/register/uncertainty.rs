@@ -49,8 +49,8 @@ pub const AXIS_SCALE: [f64; 6] = [2.1, 2.1, 1.9, 8.8, 8.8, 3.1];
 /// say its own): x, y [`XY_FLOOR_M`] and yaw [`YAW_FLOOR_RAD`] times the square root of the
 /// clearance in millimetres, z [`Z_FLOOR_M`], none on roll and pitch. What the data leave out
 /// grows with the room the peg has: the least floor that puts 95.4 % of the x, y errors within
-/// 2 sigma was 61 um at 0.2 mm and 137 um at 1.0 mm (`scenarios/paper-sweep.toml`, t_obs 10 s,
-/// 125 estimates each), which one coefficient times the square root fits (136 x 0.45 = 61); the
+/// 2 sigma was 61 um at 0.2 mm and 137 um at 1.0 mm (`scenarios/paper-sweep.toml` on the paper's
+/// cell as first calibrated, 2026-11-29; t_obs 10 s, 125 estimates each), which one coefficient times the square root fits (136 x 0.45 = 61); the
 /// yaw's least floor grows the same way. docs/registration.md, "Uncertainty".
 pub fn axis_floor(clearance_m: Option<f64>) -> [f64; 6] {
     let root_mm = (clearance_m.unwrap_or(UNKNOWN_CLEARANCE_M).max(0.0) / 1e-3).sqrt();
@@ -60,8 +60,9 @@ pub fn axis_floor(clearance_m: Option<f64>) -> [f64; 6] {
 
 /// The x, y floor at 1 mm of clearance, m: the least coefficient that puts 95.4 % of the x, y
 /// errors within 2 sigma over the fitting set, the paper sweep's 0.2 and 1.0 mm estimates at
-/// t_obs 10 s (250 estimates, `scenarios/paper-sweep.toml` cut to those clearances; the coverage
-/// is reported on its 0.1 and 0.5 mm, other clearances and prints).
+/// t_obs 10 s (250 estimates, `scenarios/paper-sweep.toml` cut to those clearances, on the paper's
+/// cell as first calibrated; the coverage is reported on its 0.1 and 0.5 mm, other clearances and
+/// prints).
 pub const XY_FLOOR_M: f64 = 0.136e-3;
 
 /// The yaw floor at 1 mm of clearance, rad, fitted as [`XY_FLOOR_M`] is.
