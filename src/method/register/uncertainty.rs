@@ -50,8 +50,9 @@ pub const AXIS_SCALE: [f64; 6] = [2.1, 2.1, 1.9, 8.8, 8.8, 3.1];
 /// clearance in millimetres, z [`Z_FLOOR_M`], none on roll and pitch. What the data leave out
 /// grows with the room the peg has: the least floor that puts 95.4 % of the x, y errors within
 /// 2 sigma was 61 um at 0.2 mm and 137 um at 1.0 mm (`scenarios/paper-sweep.toml` on the paper's
-/// cell as first calibrated, 2026-11-29; t_obs 10 s, 125 estimates each), which one coefficient times the square root fits (136 x 0.45 = 61); the
-/// yaw's least floor grows the same way. docs/registration.md, "Uncertainty".
+/// cell as first calibrated, 2026-11-29; t_obs 10 s, 125 estimates each), which one coefficient
+/// times the square root fits (136 x 0.45 = 61); the yaw's least floor grows the same way.
+/// docs/registration.md, "Uncertainty".
 pub fn axis_floor(clearance_m: Option<f64>) -> [f64; 6] {
     let root_mm = (clearance_m.unwrap_or(UNKNOWN_CLEARANCE_M).max(0.0) / 1e-3).sqrt();
     let xy = XY_FLOOR_M * root_mm;
